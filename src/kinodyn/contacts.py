@@ -1,0 +1,228 @@
+"""Foot contacts and foot sliding.
+
+A foot touches the ground when one of its points (ankle, toe, toe tip) is both low and slow: below a
+height threshold above the floor and moving slower than a speed threshold, the two parameters of
+Multon et al., "support-phase synchronization", section 4.2. The speed test tells a planted foot from
+one that sweeps close to the floor during a swing.
+
+The *sliding* measure used across kinodyn to judge quality is the horizontal speed of the foot's
+lowest point while the foot is in contact: a planted foot should not move.
+
+Shapes: ``F`` frames, ``P`` points of one foot. Heights and speeds in metres and metres per second.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinodyn.errors import ParameterError, UnknownNameError
+from kinodyn.kinematics import forward_kinematics, linear_velocity
+from kinodyn.math import quat
+from kinodyn.motion import Motion
+from kinodyn.skeleton import Skeleton
+
+__all__ = ["ContactConfig", "FootContacts", "find_feet", "foot_points", "detect", "intervals", "sliding",
+           "SlidingReport"]
+
+SIDES = ("left", "right")
+_FOOT = r"(foot|ankle|toe|heel|ball|tarsal|metatars)"
+_LEFT = re.compile(r"^(left|l(?=[A-Z_])|l_|l(?=(foot|toes?|ankle|heel)$))|(_l$|_L$|Left)")
+_RIGHT = re.compile(r"^(right|r(?=[A-Z_])|r_|r(?=(foot|toes?|ankle|heel)$))|(_r$|_R$|Right)")
+
+
+@dataclass(frozen=True)
+class ContactConfig:
+    """Thresholds of foot-contact detection.
+
+    Attributes:
+        height: metres above the floor under which a foot point may touch (the paper's first parameter).
+        speed: metres per second under which a low foot point is planted (the paper's second parameter).
+        floor: floor height in metres, or ``None`` to estimate it as the 2nd percentile of the lowest
+            foot point over the clip (mocap floors are rarely exactly at 0).
+        min_frames: contact or flight runs shorter than this many frames are merged into their
+            neighbours (removes single-frame flicker).
+    """
+
+    height: float = 0.05
+    speed: float = 0.35
+    floor: float | None = None
+    min_frames: int = 2
+
+    def __post_init__(self):
+        if not (np.isfinite(self.height) and self.height > 0):
+            raise ParameterError(f"height threshold must be a positive number of metres, got {self.height}")
+        if not (np.isfinite(self.speed) and self.speed > 0):
+            raise ParameterError(f"speed threshold must be a positive number of m/s, got {self.speed}")
+        if self.floor is not None and not np.isfinite(self.floor):
+            raise ParameterError(f"floor must be finite or None, got {self.floor}")
+        if self.min_frames < 1:
+            raise ParameterError(f"min_frames must be at least 1, got {self.min_frames}")
+
+
+def _side(name: str) -> str | None:
+    if _LEFT.search(name):
+        return "left"
+    if _RIGHT.search(name):
+        return "right"
+    return None
+
+
+def find_feet(skeleton: Skeleton, feet: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
+    """Joint indices of each foot (``{"left": ..., "right": ...}``), found by joint names.
+
+    A foot is every joint whose name says foot, ankle, toe or heel on that side (``LeftFoot``,
+    ``LeftToeBase``, ``lfoot``, ``l_ankle``, ``RightToe``...). Pass ``feet`` (side -> joint names) to
+    override.
+
+    Raises:
+        UnknownNameError: a foot cannot be found; the message lists the joints.
+    """
+    if feet is not None:
+        out = {}
+        for side in SIDES:
+            if side not in feet or not feet[side]:
+                raise ParameterError(f"feet override needs a non-empty list for {side!r}, got {feet.get(side)!r}")
+            out[side] = skeleton.indices(feet[side])
+        return out
+    out = {s: [] for s in SIDES}
+    for j in skeleton.find(_FOOT):
+        s = _side(skeleton.names[j])
+        if s is not None:
+            out[s].append(j)
+    for s in SIDES:
+        if not out[s]:
+            raise UnknownNameError(
+                f"cannot find the {s} foot by joint names (looked for foot/ankle/toe/heel with a side marker); "
+                f"pass feet={{'left': [...], 'right': [...]}}; joints are: {', '.join(skeleton.names)}")
+    return {s: np.array(v, dtype=np.int64) for s, v in out.items()}
+
+
+def foot_points(motion: Motion, feet: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    """World positions ``(F, P, 3)`` of each foot's points: its joints plus their end sites."""
+    feet = find_feet(motion.skeleton) if feet is None else feet
+    gr, gp = forward_kinematics(motion)
+    sk = motion.skeleton
+    out = {}
+    for side, idx in feet.items():
+        pts = [gp[:, idx]]
+        ends = np.nonzero(np.isin(sk.end_parents, idx))[0]
+        if len(ends):
+            par = sk.end_parents[ends]
+            pts.append(gp[:, par] + quat.mul_vec(gr[:, par], sk.end_offsets[ends]))
+        out[side] = np.concatenate(pts, axis=1)
+    return out
+
+
+@dataclass(frozen=True)
+class FootContacts:
+    """Per-foot contact labels of a clip.
+
+    Attributes:
+        labels: ``{"left": (F,) bool, "right": (F,) bool}``.
+        lowest: ``{side: (F, 3)}`` world position of the foot's lowest point in each frame.
+        lowest_velocity: ``{side: (F, 3)}`` velocity of that point (m/s).
+        floor: the floor height used.
+        fps: frame rate of the clip.
+    """
+
+    labels: dict[str, np.ndarray]
+    lowest: dict[str, np.ndarray]
+    lowest_velocity: dict[str, np.ndarray]
+    floor: float
+    fps: float
+
+    def as_array(self) -> np.ndarray:
+        """``(F, 2)`` bool, columns left and right."""
+        return np.stack([self.labels[s] for s in SIDES], axis=1)
+
+    def intervals(self) -> dict[str, np.ndarray]:
+        """``{side: (K, 2)}`` start (inclusive) and stop (exclusive) frames of each contact."""
+        return {s: intervals(self.labels[s]) for s in SIDES}
+
+
+def _clean(labels: np.ndarray, min_frames: int) -> np.ndarray:
+    """Merge runs shorter than ``min_frames`` into their neighbours."""
+    if min_frames <= 1 or len(labels) == 0:
+        return labels
+    out = labels.copy()
+    for value in (True, False):  # drop short contacts, then fill short gaps
+        iv = intervals(out == value)
+        for a, b in iv:
+            if b - a < min_frames and a > 0 and b < len(out):
+                out[a:b] = not value
+    return out
+
+
+def detect(motion: Motion, config: ContactConfig = ContactConfig(),
+           feet: dict[str, np.ndarray] | None = None) -> FootContacts:
+    """Label each foot in contact or not in every frame (height and speed thresholds).
+
+    Args:
+        motion: the clip.
+        config: thresholds (:class:`ContactConfig`).
+        feet: optional foot joint indices per side (see :func:`find_feet`).
+    """
+    pts = foot_points(motion, feet)
+    if config.floor is None:
+        low = np.concatenate([pts[s][..., 2].min(axis=1) for s in SIDES])
+        floor = float(np.percentile(low, 2.0))
+    else:
+        floor = float(config.floor)
+    labels, lowest, lowest_vel = {}, {}, {}
+    for side in SIDES:
+        p = pts[side]  # (F, P, 3)
+        v = linear_velocity(p, motion.fps)
+        speed = np.linalg.norm(v, axis=-1)
+        touching = (p[..., 2] - floor < config.height) & (speed < config.speed)
+        labels[side] = _clean(touching.any(axis=1), config.min_frames)
+        k = np.argmin(p[..., 2], axis=1)
+        rows = np.arange(len(p))
+        lowest[side] = p[rows, k]
+        lowest_vel[side] = v[rows, k]
+    return FootContacts(labels, lowest, lowest_vel, floor, motion.fps)
+
+
+def intervals(labels) -> np.ndarray:
+    """``(K, 2)`` start (inclusive) and stop (exclusive) indices of the True runs of ``labels (F,)``."""
+    x = np.asarray(labels, dtype=bool).astype(np.int8)
+    d = np.diff(np.concatenate([[0], x, [0]]))
+    return np.stack([np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]], axis=1)
+
+
+@dataclass(frozen=True)
+class SlidingReport:
+    """Foot sliding of a clip: horizontal speed of the lowest foot point while in contact (m/s).
+
+    Attributes:
+        mean: mean over all contact frames of both feet (the headline figure).
+        per_foot: mean per side.
+        p95: 95th percentile over contact frames.
+        contact_frames: number of contact frames counted.
+    """
+
+    mean: float
+    per_foot: dict[str, float]
+    p95: float
+    contact_frames: int
+
+    @property
+    def cm_per_s(self) -> float:
+        return 100.0 * self.mean
+
+
+def sliding(motion: Motion, contacts: FootContacts | None = None, config: ContactConfig = ContactConfig(),
+            feet: dict[str, np.ndarray] | None = None) -> SlidingReport:
+    """Foot sliding measure (see :class:`SlidingReport`); contacts are detected when not given."""
+    c = detect(motion, config, feet) if contacts is None else contacts
+    speeds, per = [], {}
+    for side in SIDES:
+        sp = np.linalg.norm(c.lowest_velocity[side][:, :2], axis=-1)[c.labels[side]]
+        per[side] = float(sp.mean()) if len(sp) else 0.0
+        speeds.append(sp)
+    allsp = np.concatenate(speeds)
+    if len(allsp) == 0:
+        return SlidingReport(0.0, per, 0.0, 0)
+    return SlidingReport(float(allsp.mean()), per, float(np.percentile(allsp, 95)), int(len(allsp)))
