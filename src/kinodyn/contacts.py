@@ -29,8 +29,8 @@ __all__ = ["ContactConfig", "FootContacts", "find_feet", "foot_points", "detect"
 
 SIDES = ("left", "right")
 _FOOT = r"(foot|ankle|toe|heel|ball|tarsal|metatars)"
-_LEFT = re.compile(r"^(left|l(?=[A-Z_])|l_|l(?=(foot|toes?|ankle|heel)$))|(_l$|_L$|Left)")
-_RIGHT = re.compile(r"^(right|r(?=[A-Z_])|r_|r(?=(foot|toes?|ankle|heel)$))|(_r$|_R$|Right)")
+_LEFT = re.compile(r"^(left|[lL](?=[A-Z_])|l(?=(foot|toes?|ankle|heel)$))|(_l$|_L$|Left)")
+_RIGHT = re.compile(r"^(right|[rR](?=[A-Z_])|r(?=(foot|toes?|ankle|heel)$))|(_r$|_R$|Right)")
 
 
 @dataclass(frozen=True)

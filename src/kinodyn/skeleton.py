@@ -96,9 +96,16 @@ class Skeleton:
             raise SkeletonError(
                 f"parents[j] must satisfy 0 <= parents[j] < j for j > 0; joint {k} ({names[k]!r}) has {parents[k]}")
         ep = np.asarray(self.end_parents)
-        eo = np.asarray(self.end_offsets, dtype=np.float64).reshape(-1, 3)
-        if ep.shape != (len(eo),):
-            raise SkeletonError(f"end_parents must have shape ({len(eo)},), got {ep.shape}")
+        eo = np.asarray(self.end_offsets, dtype=np.float64)
+        if eo.size == 0:
+            eo = eo.reshape(0, 3)
+        if eo.ndim != 2 or eo.shape[1] != 3:
+            raise SkeletonError(f"end_offsets must have shape (E, 3), got {eo.shape}")
+        if not np.all(np.isfinite(eo)):
+            raise SkeletonError("end_offsets must be finite, found NaN or inf")
+        if ep.shape != (len(eo),) or (len(ep) and not np.issubdtype(ep.dtype, np.integer)):
+            raise SkeletonError(
+                f"end_parents must be an int array of shape ({len(eo)},), got {ep.dtype} {ep.shape}")
         if len(ep) and (ep.min() < 0 or ep.max() >= j):
             raise SkeletonError(f"end_parents must index joints 0..{j - 1}")
         object.__setattr__(self, "parents", _readonly(parents, np.int64))

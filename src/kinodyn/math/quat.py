@@ -133,21 +133,33 @@ def angle_between(a, b) -> np.ndarray:
 
 
 def between(u, v, eps: float = EPS) -> np.ndarray:
-    """Shortest-arc rotation taking direction ``u (..., 3)`` to direction ``v (..., 3)``."""
+    """Shortest-arc rotation taking direction ``u (..., 3)`` to direction ``v (..., 3)``.
+
+    Built from axis and angle: the axis ``u x (u + v)`` (equal to ``u x v`` but without its cancellation
+    when ``v ~ -u``) and the angle ``atan2(|u x v|, u . v)``, so nearly opposite directions stay accurate.
+    Exactly opposite directions give a half turn about an axis perpendicular to ``u``; a vector shorter
+    than ``eps`` gives the identity.
+    """
     u = _arr(u)
     v = _arr(v)
-    u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), eps)
-    v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), eps)
+    nu = np.linalg.norm(u, axis=-1, keepdims=True)
+    nv = np.linalg.norm(v, axis=-1, keepdims=True)
+    zero = (nu < eps) | (nv < eps)
+    u = u / np.where(nu < eps, 1.0, nu)
+    v = v / np.where(nv < eps, 1.0, nv)
+    n = np.cross(u, u + v)
+    s = np.linalg.norm(n, axis=-1, keepdims=True)
     c = np.sum(u * v, axis=-1, keepdims=True)
-    axis = np.cross(u, v)
-    q = np.concatenate([1.0 + c, axis], axis=-1)
+    half = 0.5 * np.arctan2(s, c)
+    parallel = s < 1e-150
+    q = np.concatenate([np.cos(half), np.sin(half) * n / np.where(parallel, 1.0, s)], axis=-1)
     # Opposite vectors: rotate by pi about any axis perpendicular to u.
     alt = np.cross(u, np.array([1.0, 0.0, 0.0]))
     alt2 = np.cross(u, np.array([0.0, 1.0, 0.0]))
     alt = np.where(np.linalg.norm(alt, axis=-1, keepdims=True) < 1e-6, alt2, alt)
-    opposite = np.concatenate([np.zeros_like(c), alt], axis=-1)
-    q = np.where(1.0 + c < 1e-9, opposite, q)
-    return normalize(q)
+    opposite = np.concatenate([np.zeros(alt.shape[:-1] + (1,)), alt], axis=-1)
+    q = np.where(parallel & (c < 0.0), opposite, q)
+    return normalize(np.where(zero, identity(zero.shape[:-1]), q))
 
 
 def unroll(q, axis: int = 0) -> np.ndarray:
@@ -197,11 +209,18 @@ def average(q, weights=None, axis: int = 0) -> np.ndarray:
 
     Args:
         q: rotations ``(..., 4)``; the averaged axis is ``axis`` of ``q.shape[:-1]``.
-        weights: non-negative weights broadcastable to ``q.shape[:-1]``; uniform when ``None``.
+        weights: non-negative weights broadcastable to ``q.shape[:-1]``, or one weight per rotation along
+            ``axis`` (1-D, length ``q.shape[axis]``); uniform when ``None``.
     """
     q = _arr(q)
     ax = axis % (q.ndim - 1)
-    w = np.ones(q.shape[:-1]) if weights is None else np.broadcast_to(_arr(weights), q.shape[:-1])
+    if weights is None:
+        w = np.ones(q.shape[:-1])
+    else:
+        w = _arr(weights)
+        if w.ndim == 1 and q.ndim > 2 and len(w) == q.shape[ax]:  # along `axis`, not the last batch axis
+            w = np.expand_dims(w, tuple(i for i in range(q.ndim - 1) if i != ax))
+        w = np.broadcast_to(w, q.shape[:-1])
     q = np.moveaxis(q, ax, -2)
     w = np.moveaxis(w, ax, -1)
     if np.any(w < 0):
@@ -287,11 +306,13 @@ def from_rotvec(v) -> np.ndarray:
 
 
 def from_axis_angle(axis, angle_rad) -> np.ndarray:
-    """Rotation by ``angle_rad (...)`` about unit-normalized ``axis (..., 3)``."""
+    """Rotation by ``angle_rad (...)`` about unit-normalized ``axis (..., 3)``; the two broadcast."""
     axis = _arr(axis)
     axis = axis / np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), EPS)
-    half = 0.5 * _arr(angle_rad)[..., None]
-    return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1) * np.ones(axis.shape[:-1] + (1,))
+    half = 0.5 * _arr(angle_rad)
+    shape = np.broadcast_shapes(axis.shape[:-1], half.shape)
+    half = np.broadcast_to(half, shape)[..., None]
+    return np.concatenate([np.cos(half), np.sin(half) * np.broadcast_to(axis, shape + (3,))], axis=-1)
 
 
 def to_axis_angle(q) -> tuple[np.ndarray, np.ndarray]:
@@ -346,8 +367,9 @@ def _mul_axis(a, c, s, k):
 def to_euler(q, order: str = "zyx", extrinsic: bool = False) -> np.ndarray:
     """Euler angles in radians ``(..., 3)`` such that ``from_euler(to_euler(q, o), o)`` equals ``q``.
 
-    The middle angle lies in ``[-pi/2, pi/2]``. At gimbal lock (middle angle at +-pi/2) the last angle
-    is set to zero and the first absorbs the whole remaining rotation.
+    The middle angle lies in ``[-pi/2, pi/2]``. At gimbal lock (middle angle at +-pi/2) the first angle
+    absorbs the whole remaining rotation and the last is zero (up to rounding). The last angle is always
+    solved from what the first two leave, so the round trip is accurate near gimbal lock as well.
     """
     o = _check_order(order)
     if extrinsic:
@@ -355,12 +377,15 @@ def to_euler(q, order: str = "zyx", extrinsic: bool = False) -> np.ndarray:
     i, j, k = (_AXIS[ch] for ch in o)
     sign = 1.0 if (j - i) % 3 == 1 else -1.0
     r = to_matrix(q)
-    sb = np.clip(sign * r[..., i, k], -1.0, 1.0)
-    b = np.arcsin(sb)
-    cb = np.sqrt(np.maximum(r[..., i, i] ** 2 + r[..., i, j] ** 2, 0.0))
-    lock = cb < 1e-9
+    cb = np.hypot(r[..., i, i], r[..., i, j])
+    b = np.arctan2(sign * r[..., i, k], cb)  # accurate near +-pi/2, unlike arcsin
+    # At (numerical) gimbal lock take the convention c = 0; elsewhere c is solved below, which keeps the
+    # round trip exact to rounding even when a itself is poorly determined (cb tiny).
+    lock = cb < 1e-14
     a = np.where(lock, np.arctan2(sign * r[..., k, j], r[..., j, j]), np.arctan2(-sign * r[..., j, k], r[..., k, k]))
-    c = np.where(lock, 0.0, np.arctan2(-sign * r[..., i, j], r[..., i, i]))
+    # Row j of R_i(a)^T R equals row j of R_k(c): (sign sin c, cos c) at columns (i, j).
+    sa, ca = np.sin(a), np.cos(a)
+    c = np.arctan2(sign * ca * r[..., j, i] + sa * r[..., k, i], ca * r[..., j, j] + sign * sa * r[..., k, j])
     return np.stack([a, b, c], axis=-1)
 
 
@@ -377,9 +402,11 @@ def heading(q, forward=None) -> np.ndarray:
     q = _arr(q)
     if forward is None:
         q = abs(q)
-        return 2.0 * np.arctan2(q[..., 3], q[..., 0])
-    f = mul_vec(q, np.broadcast_to(_arr(forward), q.shape[:-1] + (3,)))
-    return np.arctan2(f[..., 1], f[..., 0])
+        h = 2.0 * np.arctan2(q[..., 3], q[..., 0])
+    else:
+        f = mul_vec(q, np.broadcast_to(_arr(forward), q.shape[:-1] + (3,)))
+        h = np.arctan2(f[..., 1], f[..., 0])
+    return np.where(h <= -np.pi, h + 2.0 * np.pi, h)  # -pi -> pi: the documented (-pi, pi]
 
 
 def from_heading(h) -> np.ndarray:
