@@ -40,8 +40,10 @@ class ContactConfig:
     Attributes:
         height: metres above the floor under which a foot point may touch (the paper's first parameter).
         speed: metres per second under which a low foot point is planted (the paper's second parameter).
-        floor: floor height in metres, or ``None`` to estimate it as the 2nd percentile of the lowest
-            foot point over the clip (mocap floors are rarely exactly at 0).
+        floor: floor height in metres, or ``None`` to estimate the floor from the clip: a plane fitted
+            through the lowest foot points while they are slow (capture floors are rarely exactly at 0
+            and often tilted by a few centimetres over the capture area), shifted down to the 2nd
+            percentile of the lowest points. Clips that cover little ground get a level floor.
         min_frames: contact or flight runs shorter than this many frames are merged into their
             neighbours (removes single-frame flicker).
     """
@@ -124,8 +126,9 @@ class FootContacts:
         labels: ``{"left": (F,) bool, "right": (F,) bool}``.
         lowest: ``{side: (F, 3)}`` world position of the foot's lowest point in each frame.
         lowest_velocity: ``{side: (F, 3)}`` velocity of that point (m/s).
-        floor: the floor height used.
+        floor: the floor height used (at x = y = 0).
         fps: frame rate of the clip.
+        floor_slope: ``(2,)`` floor slope along x and y (zero for a level floor).
     """
 
     labels: dict[str, np.ndarray]
@@ -133,6 +136,12 @@ class FootContacts:
     lowest_velocity: dict[str, np.ndarray]
     floor: float
     fps: float
+    floor_slope: tuple[float, float] = (0.0, 0.0)
+
+    def floor_height(self, xy) -> np.ndarray:
+        """Floor height under points ``xy (..., 2)``."""
+        xy = np.asarray(xy, dtype=np.float64)
+        return self.floor + xy[..., 0] * self.floor_slope[0] + xy[..., 1] * self.floor_slope[1]
 
     def as_array(self) -> np.ndarray:
         """``(F, 2)`` bool, columns left and right."""
@@ -166,23 +175,55 @@ def detect(motion: Motion, config: ContactConfig = ContactConfig(),
         feet: optional foot joint indices per side (see :func:`find_feet`).
     """
     pts = foot_points(motion, feet)
+    vel = {side: linear_velocity(pts[side], motion.fps) for side in SIDES}
     if config.floor is None:
-        low = np.concatenate([pts[s][..., 2].min(axis=1) for s in SIDES])
-        floor = float(np.percentile(low, 2.0))
+        floor, slope = _estimate_floor(pts, vel, config)
     else:
-        floor = float(config.floor)
+        floor, slope = float(config.floor), np.zeros(2)
     labels, lowest, lowest_vel = {}, {}, {}
     for side in SIDES:
         p = pts[side]  # (F, P, 3)
-        v = linear_velocity(p, motion.fps)
+        v = vel[side]
         speed = np.linalg.norm(v, axis=-1)
-        touching = (p[..., 2] - floor < config.height) & (speed < config.speed)
+        height = p[..., 2] - (floor + p[..., :2] @ slope)
+        touching = (height < config.height) & (speed < config.speed)
         labels[side] = _clean(touching.any(axis=1), config.min_frames)
-        k = np.argmin(p[..., 2], axis=1)
+        k = np.argmin(height, axis=1)
         rows = np.arange(len(p))
         lowest[side] = p[rows, k]
         lowest_vel[side] = v[rows, k]
-    return FootContacts(labels, lowest, lowest_vel, floor, motion.fps)
+    return FootContacts(labels, lowest, lowest_vel, floor, motion.fps, (float(slope[0]), float(slope[1])))
+
+
+#: A floor plane is fitted only when the planted points spread over at least this many metres.
+_PLANE_MIN_SPREAD = 1.0
+#: Largest floor slope accepted from a fit (about 3 degrees); steeper fits mean the data is not a floor.
+_PLANE_MAX_SLOPE = 0.05
+
+
+def _estimate_floor(pts, vel, config: ContactConfig) -> tuple[float, np.ndarray]:
+    """Floor height at the origin and slope ``(2,)`` from the clip's lowest foot points."""
+    lows, slow = [], []
+    for side in SIDES:
+        p = pts[side]
+        k = np.argmin(p[..., 2], axis=1)
+        rows = np.arange(len(p))
+        lows.append(p[rows, k])
+        slow.append(np.linalg.norm(vel[side][rows, k], axis=-1) < config.speed)
+    low = np.concatenate(lows)
+    planted = low[np.concatenate(slow)]
+    slope = np.zeros(2)
+    if len(planted) >= 10 and np.ptp(planted[:, :2], axis=0).max() >= _PLANE_MIN_SPREAD:
+        # Keep the planted points near the bottom (stance), fit z = a x + b y + c by least squares.
+        base = np.percentile(planted[:, 2], 2.0)
+        near = planted[planted[:, 2] < base + config.height]
+        if len(near) >= 10 and np.ptp(near[:, :2], axis=0).max() >= _PLANE_MIN_SPREAD:
+            a = np.c_[near[:, :2], np.ones(len(near))]
+            coef = np.linalg.lstsq(a, near[:, 2], rcond=None)[0]
+            if np.all(np.abs(coef[:2]) <= _PLANE_MAX_SLOPE):
+                slope = coef[:2]
+    floor = float(np.percentile(low[:, 2] - low[:, :2] @ slope, 2.0))
+    return floor, slope
 
 
 def intervals(labels) -> np.ndarray:
