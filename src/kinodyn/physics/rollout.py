@@ -1,0 +1,265 @@
+"""Batched rollouts on both cores, for generating training data.
+
+``mujoco.rollout`` steps many initial states forward under open-loop controls in C, on a pool of
+threads that run without the GIL. Here the controls are the servo targets of the characters' clips (the
+PD servos run in the engine), so a rollout is exactly what :meth:`World.step` would compute for dynamic
+characters. :func:`impact_batch` builds the fast dynamic-response paper's training set (section 7.2): the
+same walking character hit by a ball thrown with many angles, speeds, heights and target landmarks.
+
+In a rollout every character is simulated (nothing is played kinematically); start it from the state
+where the simulation should take over.
+
+Shapes: ``N`` rollouts, ``T`` steps, ``S`` = ``mj_stateSize(FULLPHYSICS)``.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from kinodyn.errors import ParameterError, SimulationDivergedError
+from kinodyn.physics import impacts as _impacts
+
+__all__ = [
+    "STATE_SPEC",
+    "RolloutResult",
+    "clip_controls",
+    "default_threads",
+    "impact_batch",
+    "rollout",
+    "threaded_rollout",
+]
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def default_threads() -> int:
+    """Threads for rollouts: the CPUs this process may use (2 on the reference machine)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+@dataclass(frozen=True)
+class RolloutResult:
+    """States after each step of ``N`` rollouts.
+
+    Attributes:
+        state: ``(N, T, S)`` full physics states (``mjSTATE_FULLPHYSICS``).
+        nq, nv: model sizes (``qpos`` starts at column 1 of a state, ``qvel`` at ``1 + nq``).
+        dt: physics timestep (s).
+        diverged: ``(N,)`` True where the state became non-finite or exploded, or MuJoCo reset it.
+        first_bad: ``(N,)`` first diverged step, -1 where fine.
+    """
+
+    state: np.ndarray
+    nq: int
+    nv: int
+    dt: float
+    diverged: np.ndarray
+    first_bad: np.ndarray
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.state[..., 0]
+
+    @property
+    def qpos(self) -> np.ndarray:
+        return self.state[..., 1:1 + self.nq]
+
+    @property
+    def qvel(self) -> np.ndarray:
+        return self.state[..., 1 + self.nq:1 + self.nq + self.nv]
+
+    def check(self) -> RolloutResult:
+        """Raise :class:`SimulationDivergedError` when any rollout diverged."""
+        if self.diverged.any():
+            i = int(np.argmax(self.diverged))
+            raise SimulationDivergedError(f"{int(self.diverged.sum())} of {len(self.diverged)} rollouts diverged "
+                                          f"(first: rollout {i} at step {int(self.first_bad[i])})",
+                                          step=int(self.first_bad[i]))
+        return self
+
+
+def _divergence(state: np.ndarray, nq: int, nv: int, max_speed: float, t0: np.ndarray, dt: float):
+    """Non-finite or exploded states, and states MuJoCo reset after finding a NaN or huge value (the
+    reset puts the time back to 0, so the clock stops matching the step count)."""
+    qv = state[..., 1 + nq:1 + nq + nv]
+    bad = ~np.isfinite(state).all(axis=-1) | (np.abs(np.nan_to_num(qv, nan=np.inf)).max(axis=-1, initial=0.0)
+                                              > max_speed)
+    expected = t0[:, None] + dt * np.arange(1, state.shape[1] + 1)[None, :]
+    bad |= np.abs(state[..., 0] - expected) > 0.5 * dt
+    div = bad.any(axis=1)
+    first = np.where(div, np.argmax(bad, axis=1), -1)
+    return div, first
+
+
+def rollout(world, initial_state=None, control=None, nstep: int | None = None, nthread: int | None = None,
+            check: bool = True) -> RolloutResult:
+    """Roll out ``N`` trajectories of ``world``'s model on ``nthread`` threads.
+
+    Args:
+        world: a :class:`~kinodyn.physics.world.World` (its model; its data is untouched).
+        initial_state: ``(N, S)`` or ``(S,)`` states (default: the world's current state).
+        control: ``(N or 1, T or 1, nu)`` servo targets (default: :func:`clip_controls`).
+        nstep: steps (inferred from ``control`` when given).
+        nthread: threads (default :func:`default_threads`).
+        check: mark rollouts that diverged (``result.diverged``); call ``result.check()`` to raise.
+
+    Returns:
+        A :class:`RolloutResult`.
+    """
+    from mujoco import rollout as _mjrollout
+
+    m = world.model
+    s0 = world.get_state(STATE_SPEC) if initial_state is None else np.asarray(initial_state, dtype=np.float64)
+    s0 = np.atleast_2d(s0)
+    nstate = mujoco.mj_stateSize(m, STATE_SPEC)
+    if s0.shape[-1] != nstate:
+        raise ParameterError(f"initial states must have {nstate} columns (FULLPHYSICS), got {s0.shape}")
+    if control is None:
+        if nstep is None:
+            raise ParameterError("pass nstep or a control array")
+        control = clip_controls(world, nstep)[None]
+    control = np.asarray(control, dtype=np.float64)
+    if control.ndim == 2:
+        control = control[None]
+    if control.ndim != 3 or control.shape[-1] != m.nu:
+        raise ParameterError(f"control must be (N or 1, T or 1, {m.nu}), got {control.shape}")
+    if nstep is None:
+        nstep = control.shape[1]
+    if not (isinstance(nstep, (int, np.integer)) and nstep >= 1):
+        raise ParameterError(f"nstep must be a positive integer, got {nstep!r}")
+    nthread = default_threads() if nthread is None else int(nthread)
+    if nthread < 1:
+        raise ParameterError(f"nthread must be at least 1, got {nthread}")
+    datas = [mujoco.MjData(m) for _ in range(nthread)]
+    with _mjrollout.Rollout(nthread=nthread if nthread > 1 else 0) as r:
+        state, _ = r.rollout(m, datas, s0, control, nstep=int(nstep))
+    if check:
+        t0 = np.broadcast_to(s0[:, 0], (len(state),))
+        div, first = _divergence(state, m.nq, m.nv, world.config.max_speed, t0, m.opt.timestep)
+    else:
+        div, first = np.zeros(len(state), dtype=bool), np.full(len(state), -1)
+    return RolloutResult(state, m.nq, m.nv, world.dt, div, first)
+
+
+def clip_controls(world, nstep: int, start_step: int | None = None) -> np.ndarray:
+    """``(nstep, nu)`` servo targets that :meth:`World.step` would apply over the next ``nstep`` steps
+    (clip targets with their lookahead, fixed targets, or the rest pose)."""
+    start = world.step_count if start_step is None else int(start_step)
+    out = np.empty((nstep, world.model.nu))
+    out[:] = world.data.ctrl
+    steps = np.arange(start, start + nstep)
+    for c in world.characters:
+        sl = slice(c.cadr, c.cadr + c.map.nu)
+        if c._target is not None:
+            out[:, sl] = c._target
+        elif c.clip is not None:
+            rows = c.clip.indices(steps[:, None] + c.lead_steps[None, :])
+            out[:, sl] = c.clip.ctrl[rows, c.ctrl_cols[None, :]]
+        else:
+            out[:, sl] = c.rest_ctrl
+    return out
+
+
+def impact_batch(world, char, throws, duration: float = 0.5, lead: float = 0.05, mass: float = 3.0,
+                 radius: float = 0.1, nthread: int | None = None) -> tuple[RolloutResult, list[dict]]:
+    """Roll out one ball impact per entry of ``throws`` on a character that plays a clip.
+
+    Each throw is a dict with ``landmark``, ``speed``, ``direction``, ``height`` and ``time`` (world time
+    of arrival at the landmark; default now + ``lead``), and optionally ``distance``. Each rollout starts
+    ``lead`` seconds before that arrival from the clip's state (positions and finite-difference velocities)
+    with the ball on its way, and runs ``duration`` seconds with the servos tracking the clip.
+
+    Returns:
+        The :class:`RolloutResult` (rollout ``i`` for ``throws[i]``) and per throw a dict with ``start_step``
+        (world step of the rollout's first state), ``launch`` (ball start, velocity, flight time) and the
+        ball's ``qpos``/``qvel`` addresses.
+    """
+    if not throws:
+        raise ParameterError("throws must be a non-empty list of throw parameters")
+    ball = next((p for p in world.projectiles if abs(p.mass - mass) < 1e-12 and abs(p.radius - radius) < 1e-12),
+                None)
+    if ball is None:
+        ball = world.add_projectile(mass, radius)
+    ball.activate()
+    if char.clip is None:
+        raise ParameterError(f"character {char.name!r} plays no clip; play one first")
+    m = world.model
+    nsteps = round(duration / world.dt)
+    lead_steps = max(1, round(lead / world.dt))
+    g = np.array([0.0, 0.0, -world.config.gravity])
+    base = world.get_state(STATE_SPEC)
+    states, controls, info = [], [], []
+    for th in throws:
+        t_hit = float(th.get("time", world.time + lead))
+        hit_step = round(t_hit / world.dt)
+        start_step = hit_step - lead_steps
+        if start_step < world.step_count:
+            raise ParameterError(f"throw arriving at t={t_hit:.3f} s starts before the world's time {world.time:.3f} s")
+        target = world._landmark_point(char, char.map.body(th.get("landmark", "chest")), t_hit)
+        start, vel, flight = _impacts.launch(target, th["speed"], th["direction"], th["height"],
+                                             th.get("distance", 2.0), g)
+        tau = flight - lead_steps * world.dt  # time already flown at the rollout's start
+        if tau < 0:
+            raise ParameterError(f"lead ({lead} s) is longer than the ball's flight ({flight:.3f} s)")
+        p0 = start + vel * tau + 0.5 * g * tau * tau
+        v0 = vel + g * tau
+        s = base.copy()
+        s[0] = start_step * world.dt
+        k = char.clip.index(start_step)
+        s[1 + char.qadr:1 + char.qadr + char.map.nq] = char.clip.qpos[k]
+        s[1 + m.nq + char.vadr:1 + m.nq + char.vadr + char.map.nv] = char.clip.qvel[k]
+        s[1 + ball._qadr:1 + ball._qadr + 7] = np.concatenate([p0, [1.0, 0.0, 0.0, 0.0]])
+        s[1 + m.nq + ball._vadr:1 + m.nq + ball._vadr + 6] = np.concatenate([v0, np.zeros(3)])
+        states.append(s)
+        controls.append(clip_controls(world, nsteps, start_step))
+        info.append({"start_step": start_step, "launch": (start, vel, flight), "ball_qadr": ball._qadr,
+                     "ball_vadr": ball._vadr, "throw": dict(th)})
+    res = rollout(world, np.array(states), np.array(controls), nsteps, nthread)
+    return res, info
+
+
+def threaded_rollout(world, initial_states, control, nthread: int | None = None) -> RolloutResult:
+    """The same as :func:`rollout` with plain Python threads calling ``mj_step`` (which releases the
+    GIL); a reference for :func:`rollout` and a fallback."""
+    m = world.model
+    s0 = np.atleast_2d(np.asarray(initial_states, dtype=np.float64))
+    control = np.asarray(control, dtype=np.float64)
+    if control.ndim == 2:
+        control = control[None]
+    n, nstep = len(s0), control.shape[1]
+    nstate = mujoco.mj_stateSize(m, STATE_SPEC)
+    out = np.empty((n, nstep, nstate))
+    nthread = default_threads() if nthread is None else int(nthread)
+    jobs = list(range(n))
+    lock = threading.Lock()
+
+    def worker():
+        d = mujoco.MjData(m)
+        while True:
+            with lock:
+                if not jobs:
+                    return
+                i = jobs.pop()
+            mujoco.mj_setState(m, d, s0[i], STATE_SPEC)
+            ctl = control[i if len(control) > 1 else 0]
+            for t in range(nstep):
+                d.ctrl[:] = ctl[t if len(ctl) > 1 else 0]
+                mujoco.mj_step(m, d)
+                mujoco.mj_getState(m, d, out[i, t], STATE_SPEC)
+
+    threads = [threading.Thread(target=worker) for _ in range(nthread)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    div, first = _divergence(out, m.nq, m.nv, world.config.max_speed, np.broadcast_to(s0[:, 0], (n,)),
+                             m.opt.timestep)
+    return RolloutResult(out, m.nq, m.nv, world.dt, div, first)

@@ -1,0 +1,139 @@
+"""Projectiles, pushes, contacts between characters, and the impact log."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip("mujoco")
+
+from kinodyn.data import library
+from kinodyn.data.skeleton import humanoid
+from kinodyn.errors import ParameterError
+from kinodyn.physics.body import build_body
+from kinodyn.physics.impacts import launch
+from kinodyn.physics.world import World
+
+#: the issue's bound on momentum transfer (ball's loss vs the body's gain)
+_MOMENTUM_TOL = 0.10
+
+
+@pytest.fixture(scope="module")
+def body():
+    return build_body(humanoid())
+
+
+@pytest.mark.parametrize("speed,direction,height", [(8.0, 0.0, 1.5), (15.0, 2.0, 0.5), (5.0, -1.0, 2.5)])
+def test_launch_reaches_the_target_at_the_given_speed(speed, direction, height):
+    g = np.array([0.0, 0.0, -9.81])
+    target = np.array([0.3, -0.2, 1.3])
+    start, vel, t = launch(target, speed, direction, height, distance=2.5, gravity=g)
+    assert np.linalg.norm(vel) == pytest.approx(speed, rel=1e-9)
+    np.testing.assert_allclose(start + vel * t + 0.5 * g * t * t, target, atol=1e-9)
+    assert start[2] == pytest.approx(height)
+    np.testing.assert_allclose(np.linalg.norm((target - start)[:2]), 2.5)
+    # travelling along the heading
+    d = (target - start)[:2] / 2.5
+    np.testing.assert_allclose(d, [np.cos(direction), np.sin(direction)], atol=1e-12)
+
+
+def test_launch_rejects_impossible_throws():
+    with pytest.raises(ParameterError, match="cannot reach"):
+        launch([0, 0, 1.0], 1.0, 0.0, 1.0, distance=10.0)
+    with pytest.raises(ParameterError):
+        launch([0, 0, 1.0], -3.0, 0.0, 1.0)
+
+
+def test_ball_to_chest_transfers_its_momentum(body):
+    """In free fall (no gravity, no ground) a ball hitting the chest of a limp body: the body gains what
+    the ball loses, and the impact log records that impulse."""
+    w = World(gravity=0.0, ground=False)
+    c = w.add_character(body)
+    c.set_gains(0.0)
+    p_body0 = c.momentum()
+    ball = w.throw(c, "chest", mass=3.0, radius=0.1, speed=10.0, direction=0.3, height=1.3)
+    p_ball0 = ball.momentum
+    w.run(0.6)
+    lost = p_ball0 - ball.momentum
+    gained = c.momentum() - p_body0
+    rel = np.linalg.norm(gained - lost) / np.linalg.norm(lost)
+    print(f"ball to chest: ball lost {np.linalg.norm(lost):.3f} N s, body gained {np.linalg.norm(gained):.3f} N s, "
+          f"mismatch {rel:.2%}")
+    assert rel < _MOMENTUM_TOL
+    assert np.linalg.norm(lost) > 10.0  # a real hit
+    imps = w.impacts
+    assert imps and {i.body for i in imps} <= {"Spine1", "LeftArm", "RightArm", "LeftForeArm", "RightForeArm",
+                                               "LeftHand", "RightHand", "LeftShoulder", "RightShoulder"}
+    assert "Spine1" in {i.body for i in imps}
+    logged = np.sum([i.impulse for i in imps], axis=0)
+    assert np.linalg.norm(logged - gained) / np.linalg.norm(gained) < _MOMENTUM_TOL
+    first = imps[0]
+    assert first.kind == "projectile" and first.source == ball.name and first.character == c.name
+    assert 0.0 < first.time < 0.6 and first.point.shape == (3,)
+
+
+def test_ball_switches_a_kinematic_walker_to_dynamic(body):
+    walk = library.load("walk")
+    w = World()
+    c = w.add_character(body)
+    c.play(walk, loop=True)
+    w.throw(c, "chest", mass=4.0, radius=0.11, speed=9.0, direction=np.pi / 2, height=1.5, at=1.0)
+    w.run(0.9)
+    assert c.mode == "kinematic" and not w.impacts
+    w.run(0.3)
+    assert c.mode == "dynamic"
+    assert 0.9 < c.switch_time < 1.05
+    hit = w.impacts[0]
+    assert 0.9 < hit.time < 1.05
+    # the trajectory keeps the clip up to the impact
+    sim = c.trajectory()
+    ref = w.trajectory(c, stop=0.9)
+    assert ref.num_frames == 55
+    np.testing.assert_allclose(sim.root_pos[:55], ref.root_pos)
+
+
+def test_push_changes_momentum_by_the_impulse(body):
+    w = World(gravity=0.0, ground=False)
+    c = w.add_character(body)
+    c.set_gains(0.0)
+    p0 = c.momentum()
+    imp = np.array([30.0, -10.0, 5.0])
+    w.push(c, "chest", imp, point=None)
+    np.testing.assert_allclose(c.momentum() - p0, imp, rtol=1e-9, atol=1e-9)
+    w.step()  # free flight keeps it, to the integrator's accuracy for limbs set whirling (a few %)
+    assert np.linalg.norm(c.momentum() - p0 - imp) / np.linalg.norm(imp) < _MOMENTUM_TOL
+    (rec,) = w.impacts
+    assert rec.kind == "push" and rec.body == "Spine1"
+    np.testing.assert_allclose(rec.impulse, imp)
+    with pytest.raises(ParameterError):
+        w.push(c, "chest", [1.0, 2.0])
+
+
+def test_contact_between_characters_is_logged_both_ways(body):
+    w = World()
+    a = w.add_character(body, name="a", at=(0.0, 0.0, 0.0))
+    b = w.add_character(body, name="b", at=(0.95, 0.0, np.pi))
+    a.play(library.load("punch"), at=(0.0, 0.0, 0.0))
+    b.play(library.load("idle"), at=(0.95, 0.0, np.pi), loop=True)
+    w.run(1.0)
+    assert b.mode == "dynamic"  # the punch landed
+    on_b = [i for i in w.impacts if i.character == "b"]
+    on_a = [i for i in w.impacts if i.character == "a"]
+    assert on_b and on_a
+    assert on_b[0].source.startswith("a/") and on_b[0].kind == "character"
+    # equal and opposite
+    np.testing.assert_allclose(on_b[0].impulse, -on_a[0].impulse, atol=1e-9)
+
+
+def test_attacker_that_ignores_impacts_keeps_its_clip(body):
+    w = World()
+    a = w.add_character(body, name="a", at=(0.0, 0.0, 0.0))
+    b = w.add_character(body, name="b", at=(0.95, 0.0, np.pi))
+    a.on_impact = "ignore"
+    punch = library.load("punch")
+    a.play(punch, at=(0.0, 0.0, 0.0), align_floor=False)
+    b.play(library.load("idle"), at=(0.95, 0.0, np.pi), loop=True)
+    w.run(1.0)
+    assert a.mode == "kinematic" and b.mode == "dynamic"
+    np.testing.assert_allclose(a.trajectory().global_positions(), punch.aligned_to((0, 0, 0))[:61].global_positions(),
+                               atol=1e-9)
