@@ -6,10 +6,12 @@
   1, 8 or 32 PD-tracked characters (:meth:`World.step` with its Python side: servo targets, contact
   watch, divergence checks, recording), each on one thread;
 * ``rtf_1``, ``rtf_8``, ``rtf_32``: the matching real-time factors (simulated seconds per wall second) at
-  60 output frames per second;
+  60 output frames per second, and ``rtf_cpu_*`` per CPU second of this process (what one core of its
+  own gives: on a machine shared with other jobs the wall figures are lower);
 * ``realtime_characters``: the largest number of PD-tracked characters that one world simulates in real
   time (RTF >= 1) at 60 frames per second, found by measuring (a per-character cost line through the 8
   and 32 measurements gives the guess, then it is measured);
+* ``realtime_characters_cpu``: the same by CPU time;
 * ``realtime_characters_2worlds``: the same with the characters split over two worlds stepped on two
   threads (:func:`kinodyn.physics.world.step_parallel`), for characters that do not meet;
 * ``rollout_steps_per_s``: physics steps per second of :func:`kinodyn.physics.rollout.rollout` over 64
@@ -59,45 +61,49 @@ def tracked_world(n: int, body=None, walk=None, warmup: float = 0.2):
     return w
 
 
-def measure_world(worlds, seconds: float) -> float:
-    """Wall seconds to simulate ``seconds`` of every world (in parallel when several)."""
+def measure_world(worlds, seconds: float) -> tuple[float, float]:
+    """(wall seconds, CPU seconds of this process) to simulate ``seconds`` of every world (in parallel
+    on threads when several)."""
     from kinodyn.physics.world import step_parallel
 
     frames = round(seconds * FPS)
     for w in worlds:
         w.record = False
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     if len(worlds) == 1:
         worlds[0].step(frames)
     else:
         step_parallel(worlds, frames, threads=len(worlds))
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
-def _rtf(n: int, seconds: float, body, walk, nworlds: int = 1) -> tuple[float, float]:
-    """(steps per second, real-time factor) of ``n`` characters split over ``nworlds`` worlds."""
+def _rtf(n: int, seconds: float, body, walk, nworlds: int = 1) -> tuple[float, float, float]:
+    """(steps per wall second, wall real-time factor, CPU real-time factor) of ``n`` characters split
+    over ``nworlds`` worlds."""
     split = [n // nworlds + (1 if k < n % nworlds else 0) for k in range(nworlds)]
     worlds = [tracked_world(k, body, walk) for k in split if k > 0]
-    wall = measure_world(worlds, seconds)
+    wall, cpu = measure_world(worlds, seconds)
     steps = seconds * FPS * worlds[0].config.substeps
-    return steps / wall, seconds / wall
+    return steps / wall, seconds / wall, seconds / max(cpu, 1e-9)
 
 
-def _largest_realtime(guess: int, seconds: float, body, walk, nworlds: int = 1, limit: int = 256) -> int:
-    """Largest n with RTF >= 1 near ``guess`` (measured: up while real time, down while not)."""
+def _largest_realtime(guess: int, seconds: float, body, walk, nworlds: int = 1, limit: int = 256,
+                      which: int = 1) -> int:
+    """Largest n with RTF >= 1 near ``guess`` (measured: up while real time, down while not);
+    ``which`` picks the wall (1) or CPU (2) real-time factor."""
     n = max(1, min(guess, limit))
-    _, r = _rtf(n, seconds, body, walk, nworlds)
+    r = _rtf(n, seconds, body, walk, nworlds)[which]
     if r >= 1.0:
         step = max(1, n // 8)
         while n + step <= limit:
-            _, r2 = _rtf(n + step, seconds, body, walk, nworlds)
+            r2 = _rtf(n + step, seconds, body, walk, nworlds)[which]
             if r2 < 1.0:
                 break
             n += step
         return n
     while n > 1:
         n -= max(1, n // 8)
-        _, r = _rtf(n, seconds, body, walk, nworlds)
+        r = _rtf(n, seconds, body, walk, nworlds)[which]
         if r >= 1.0:
             return n
     return 0
@@ -144,8 +150,8 @@ def _python_pd_rate(seconds: float, body, walk) -> float:
             d.qfrc_applied[vh] = kph * (target[ch] - d.qpos[qh]) - kvh * d.qvel[vh]
             mujoco.mj_step(m, d)
             done += 1
-            if not np.isfinite(d.qvel).all():
-                raise SimulationDivergedError("python PD diverged", step=i)
+            if not np.isfinite(d.qvel).all() or np.abs(d.qvel).max() > 100.0:
+                raise SimulationDivergedError("python PD diverged", step=i)  # stop before MuJoCo must
     except SimulationDivergedError:
         pass
     return done / (time.perf_counter() - t0)
@@ -183,20 +189,25 @@ def run(quick: bool = False, progress=None) -> BenchResult:
         if bar is not None:
             bar.update(1)
 
-    rates = {}
+    rates, cpu_rates = {}, {}
     for n in (1, 8, 32):
-        sps, rtf = _rtf(n, seconds, body, walk)
+        sps, rtf, rtf_cpu = _rtf(n, seconds, body, walk)
         rates[n] = sps
+        cpu_rates[n] = rtf_cpu * FPS * 4
         res.add(f"steps_per_s_{n}", sps, "steps/s")
         res.add(f"rtf_{n}", rtf, "x real time")
+        res.add(f"rtf_cpu_{n}", rtf_cpu, "x real time per CPU second")
         tick()
-    steps_needed = FPS * 4  # default substeps
-    # wall time per step = a + b n through the 8 and 32 measurements
-    b = (1.0 / rates[32] - 1.0 / rates[8]) / 24.0
-    a = 1.0 / rates[8] - 8 * b
-    guess = int((1.0 / steps_needed - a) / b) if b > 0 else 64
+
+    def guess_from(r):  # time per step = a + b n through the 8 and 32 measurements
+        b = (1.0 / r[32] - 1.0 / r[8]) / 24.0
+        a = 1.0 / r[8] - 8 * b
+        return int((1.0 / (FPS * 4) - a) / b) if b > 0 else 64
+
+    guess, guess_cpu = guess_from(rates), guess_from(cpu_rates)
     if quick:
         res.add("realtime_characters", max(0, guess), "characters")
+        res.add("realtime_characters_cpu", max(0, guess_cpu), "characters")
         res.notes["realtime_characters"] = "estimated from the 8 and 32 measurements (--quick)"
         tick()
         res.add("realtime_characters_2worlds", max(0, 2 * guess), "characters")
@@ -205,8 +216,10 @@ def run(quick: bool = False, progress=None) -> BenchResult:
     else:
         n1 = _largest_realtime(guess, seconds, body, walk)
         res.add("realtime_characters", n1, "characters")
+        res.add("realtime_characters_cpu", _largest_realtime(guess_cpu, seconds, body, walk, which=2),
+                "characters")
         tick()
-        n2 = _largest_realtime(max(2, int(1.7 * n1)), seconds, body, walk, nworlds=2)
+        n2 = _largest_realtime(max(2, int(1.7 * max(n1, 1))), seconds, body, walk, nworlds=2)
         res.add("realtime_characters_2worlds", n2, "characters")
         tick()
     nroll, nstep = (16, 300) if quick else (64, 600)

@@ -547,6 +547,8 @@ class World:
             p._bind(m)
             owner[m.body_geomadr[p._body]] = -2 - p.index
         self._owner = owner
+        # reach of each character: farthest geometry from its root in the rest pose
+        self._reach = np.array([_reach(c.body) for c in self.characters])
         self._warn0 = np.array(d.warning.number, dtype=np.int64)
         for c in self.characters:
             if c._mocap0 is not None:
@@ -870,7 +872,7 @@ class World:
         for _ in range(frames):
             # who needs what this frame (modes change only between steps, on impacts)
             kin = [c for c in self.characters if c.mode == "kinematic" and c.clip is not None]
-            watch = len(self.characters) > 1 or any(p.active for p in self.projectiles)
+            watch = any(p.active for p in self.projectiles) or self._characters_close()
             ctrl = self._frame_controls(nsub)
             for _s in range(nsub):
                 if self._pending_throws:
@@ -890,6 +892,22 @@ class World:
             self._check()
             if self.record:
                 self._record()
+
+    def _characters_close(self) -> bool:
+        """Whether two characters may touch within the next frame (their roots closer than their reaches
+        plus a margin); contacts between characters are watched only then."""
+        n = len(self.characters)
+        if n < 2:
+            return False
+        d = self.data
+        pos = np.empty((n, 3))
+        for i, c in enumerate(self.characters):
+            pos[i] = d.mocap_pos[c.mocap_id] if c.mocap_id >= 0 else d.qpos[c.qadr:c.qadr + 3]
+        reach = self._reach
+        dist = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
+        near = dist < reach[:, None] + reach[None, :] + 0.5
+        np.fill_diagonal(near, False)
+        return bool(near.any())
 
     def _frame_controls(self, nsub: int, ctrl_prev=None, offset: int = 0):
         """``(offset + nsub, nu)`` servo targets of the next ``nsub`` steps (rows from ``offset`` on are
@@ -1040,6 +1058,15 @@ class World:
     def to_xml(self) -> str:
         """MJCF of the whole world (characters, balls, ground)."""
         return self._spec.to_xml()
+
+
+def _reach(body: CharacterBody) -> float:
+    """Farthest point of a character's geometry from its root joint in the rest pose (m)."""
+    m = body.model()
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    root = d.xpos[1]
+    return float(max(np.linalg.norm(d.geom_xpos[g] - root) + m.geom_rbound[g] for g in range(1, m.ngeom)))
 
 
 def _geom_volume(m: mujoco.MjModel, g: int) -> float:
