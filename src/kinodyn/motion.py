@@ -65,7 +65,7 @@ class Motion:
             raise MotionError(f"root_pos has non-finite values (first at frame {_first_bad(rp)})")
         if not np.all(np.isfinite(lr)):
             raise MotionError(f"local_rot has non-finite values (first at frame {_first_bad(lr)})")
-        norms = np.linalg.norm(lr, axis=-1)
+        norms = np.sqrt(np.einsum("...i,...i->...", lr, lr))
         if f and np.any(np.abs(norms - 1.0) > 1e-6):
             if np.any(norms < 1e-9):
                 raise MotionError("local_rot contains zero quaternions")

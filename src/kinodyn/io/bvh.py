@@ -1,11 +1,20 @@
 """BVH (Biovision Hierarchy) reading and writing.
 
-Reading accepts any rotation-channel order per joint, 3- and 6-channel joints, ``End Site`` blocks,
-CRLF or LF line ends, and converts to kinodyn's frame (Z up, metres): a Y-up file is turned by the
-proper rotation ``(x, y, z) -> (z, x, y)`` so a character facing +Z in the file faces +X here, with +Y
-to its left. Root position channels are absolute positions (the root OFFSET is kept but not added, as
-all common tools read them). Lengths are converted by ``scale`` metres per file unit, detected from
-the body's size when not given (m, cm, mm, inch, or CMU's 1/0.45-inch unit).
+Reading accepts any rotation-channel order per joint, 3- and 6-channel joints (0-channel joints too),
+``End Site`` blocks, CRLF, LF or CR line ends, a UTF-8 byte-order mark, blank lines and trailing
+whitespace, and converts to kinodyn's frame (Z up, metres): a Y-up file is turned by the proper
+rotation ``(x, y, z) -> (z, x, y)`` so a character facing +Z in the file faces +X here, with +Y to its
+left. Root position channels are absolute positions (the root OFFSET is kept but not added, as all
+common tools read them). Lengths are converted by ``scale`` metres per file unit, detected from the
+body's size when not given (m, cm, mm, inch, or CMU's 1/0.45-inch unit). A ``Frame Time`` that is a
+whole frame rate's period rounded to the digits written (``.0083333``) is read as exactly that rate.
+
+Malformed input raises :class:`~kinodyn.errors.BVHParseError` naming the file and line: truncated
+files, ragged or extra frame lines, text, ``nan``/``inf`` or numbers beyond :data:`MAX_ABS_VALUE`
+where numbers belong, unknown channels, absurd ``Frames:`` or ``CHANNELS`` claims, more than
+:data:`MAX_JOINTS` joints, headers without ``MOTION`` in their first 16 MiB, binary data. Memory is
+bounded by the file's size, never by what its header claims, and nothing recurses on the nesting
+depth. The numbers are parsed by a compiled single-pass parser (:mod:`kinodyn.io._numparse`).
 
 Writing produces a standard BVH (Y up by default, centimetres by default, ``Zrotation Yrotation
 Xrotation`` channels, six channels on the root), atomically. Write-then-read reproduces every global
@@ -20,25 +29,52 @@ from pathlib import Path
 
 import numpy as np
 
-from kinodyn.errors import BVHParseError, ParameterError
+from kinodyn.errors import BVHParseError, MotionError, ParameterError, SkeletonError
 from kinodyn.io import _numparse
 from kinodyn.io.atomic import atomic_write_bytes
 from kinodyn.math import quat
 from kinodyn.motion import Motion
 from kinodyn.skeleton import Skeleton
 
-__all__ = ["BVHData", "read_bvh", "parse_bvh", "write_bvh", "to_bvh_text", "detect_scale", "UNIT_SCALES",
-           "Y_UP_TO_Z_UP"]
+__all__ = [
+    "MAX_ABS_VALUE",
+    "MAX_FRAMES",
+    "MAX_JOINTS",
+    "SCALE_RANGE",
+    "UNIT_SCALES",
+    "Y_UP_TO_Z_UP",
+    "BVHData",
+    "bvh_from_bytes",
+    "detect_scale",
+    "parse_bvh",
+    "read_bvh",
+    "resolve_scale",
+    "to_bvh_text",
+    "to_motion",
+    "write_bvh",
+]
 
 #: Metres per unit of the length units kinodyn recognizes.
 UNIT_SCALES = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
 #: Quaternion turning a Y-up frame into kinodyn's Z-up frame: (x, y, z) -> (z, x, y).
 Y_UP_TO_Z_UP = np.array([0.5, 0.5, 0.5, 0.5])
+#: Accepted range of ``scale`` (metres per file unit).
+SCALE_RANGE = (1e-9, 1e3)
 _TYPICAL_BODY_SIZE_M = 1.7
+#: Largest frame count accepted in ``Frames:`` (a larger claim is reported as absurd).
 MAX_FRAMES = 50_000_000
+#: Largest number of joints accepted in a hierarchy.
+MAX_JOINTS = 10_000
+#: Largest magnitude accepted for any number in the file (file units or degrees).
+MAX_ABS_VALUE = 1e9
 _MAX_HEADER_BYTES = 16 << 20
+_SNIFF_BYTES = 64 << 10
+_MAX_INDENT = 32
 
 _CHANNEL_RE = re.compile(r"^([XYZxyz])(position|rotation)$", re.IGNORECASE)
+_NUMBER_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+_UINT_RE = re.compile(r"[0-9]+\Z")
+_MOTION_RE = re.compile(rb"(?m)^[ \t]*MOTION[ \t]*\r?$")
 
 
 @dataclass(frozen=True)
@@ -69,54 +105,77 @@ class BVHData:
 # --------------------------------------------------------------------------- reading
 
 
-def _tokens(header: str):
-    """Yield ``(token, line_number)`` over the header text."""
-    for ln, line in enumerate(header.split("\n"), start=1):
-        for tok in line.split():
-            yield tok, ln
+def _parse_number(tok: str) -> float | None:
+    """``float(tok)`` for a plain decimal (``[+-]digits[.digits][e[+-]digits]``), else None.
+
+    Python's ``float`` also takes ``nan``, ``inf``, ``1_000`` and non-ASCII digits; BVH does not.
+    """
+    if _NUMBER_RE.match(tok) is None:
+        return None
+    return float(tok)
 
 
 class _Header:
+    """A lazy token stream over the hierarchy text, with line numbers and one token of look-ahead."""
+
     def __init__(self, text: str, path):
-        self.toks = list(_tokens(text))
-        self.i = 0
         self.path = path
         self.last_line = text.count("\n") + 1
+        self._gen = self._tokens(text)
+        self._ahead: tuple[str, int] | None = None
+        self._line = 1
+
+    @staticmethod
+    def _tokens(text: str):
+        for ln, line in enumerate(text.split("\n"), start=1):
+            for tok in line.split():
+                yield tok, ln
+
+    def _fill(self) -> tuple[str, int] | None:
+        if self._ahead is None:
+            self._ahead = next(self._gen, None)
+        return self._ahead
 
     def err(self, msg: str, line: int | None = None):
         if line is None:
-            line = self.toks[self.i][1] if self.i < len(self.toks) else self.last_line
+            t = self._fill()
+            line = t[1] if t is not None else self.last_line
         return BVHParseError(msg, self.path, line)
 
     def next(self, what: str) -> tuple[str, int]:
-        if self.i >= len(self.toks):
-            raise self.err(f"unexpected end of file, expected {what}")
-        t = self.toks[self.i]
-        self.i += 1
+        t = self._fill()
+        if t is None:
+            raise self.err(f"unexpected end of the hierarchy, expected {what}", self._line)
+        self._ahead = None
+        self._line = t[1]
         return t
 
-    def expect(self, word: str) -> int:
+    def expect(self, word: str, context: str = "") -> int:
         tok, ln = self.next(repr(word))
         if tok.upper() != word.upper():
-            raise self.err(f"expected {word!r}, found {tok!r}", ln)
+            raise self.err(f"expected {word!r}{context}, found {tok[:40]!r}", ln)
         return ln
 
     def number(self, what: str) -> float:
         tok, ln = self.next(what)
-        try:
-            v = float(tok)
-        except ValueError:
-            raise self.err(f"expected a number for {what}, found {tok!r}", ln) from None
-        if not np.isfinite(v):
-            raise self.err(f"{what} must be finite, found {tok!r}", ln)
+        v = _parse_number(tok)
+        if v is None:
+            low = tok.lower().lstrip("+-")
+            kind = "a non-finite value" if low in ("nan", "inf", "infinity") else "text"
+            raise self.err(f"expected a number for {what}, found {kind} {tok[:40]!r}", ln)
+        if abs(v) > MAX_ABS_VALUE:
+            raise self.err(f"{what} is out of range: {tok[:40]!r} (limit {MAX_ABS_VALUE:g})", ln)
         return v
 
     def peek(self) -> str | None:
-        return self.toks[self.i][0] if self.i < len(self.toks) else None
+        t = self._fill()
+        return None if t is None else t[0]
 
 
 def _parse_hierarchy(h: _Header):
+    """Read ``HIERARCHY ROOT ...`` (iteratively: nesting depth is limited only by :data:`MAX_JOINTS`)."""
     names: list[str] = []
+    name_set: set[str] = set()
     parents: list[int] = []
     offsets: list[list[float]] = []
     channels: list[tuple[str, ...]] = []
@@ -124,67 +183,117 @@ def _parse_hierarchy(h: _Header):
     end_offsets: list[list[float]] = []
 
     def offset(what: str) -> list[float]:
-        h.expect("OFFSET")
+        h.expect("OFFSET", f" in {what}")
         return [h.number(f"{what} OFFSET x"), h.number(f"{what} OFFSET y"), h.number(f"{what} OFFSET z")]
 
-    def joint(parent: int):
+    def open_joint(parent: int) -> int:
         name, ln = h.next("a joint name")
-        if name == "{":
+        if name in ("{", "}"):
             raise h.err("joint has no name", ln)
-        if name in names:
-            raise h.err(f"joint name {name!r} is used twice", ln)
-        h.expect("{")
+        if name in name_set:
+            raise h.err(f"joint name {name[:40]!r} is used twice", ln)
+        if len(names) >= MAX_JOINTS:
+            raise h.err(f"more than {MAX_JOINTS} joints in the hierarchy", ln)
+        h.expect("{", f" after joint name {name[:40]!r}")
         idx = len(names)
         names.append(name)
+        name_set.add(name)
         parents.append(parent)
-        offsets.append(offset(f"joint {name!r}"))
+        offsets.append(offset(f"joint {name[:40]!r}"))
         tok, ln = h.next("CHANNELS")
         if tok.upper() != "CHANNELS":
-            raise h.err(f"expected 'CHANNELS' for joint {name!r}, found {tok!r}", ln)
+            raise h.err(f"expected 'CHANNELS' for joint {name[:40]!r}, found {tok[:40]!r}", ln)
         cnt_tok, ln = h.next("a channel count")
-        if not cnt_tok.isdigit():
-            raise h.err(f"channel count of joint {name!r} must be an integer, found {cnt_tok!r}", ln)
-        cnt = int(cnt_tok)
-        if cnt not in (0, 1, 2, 3, 6) or (cnt > 6):
-            raise h.err(f"joint {name!r} declares {cnt} channels; expected 3 or 6", ln)
+        if not _UINT_RE.match(cnt_tok):
+            raise h.err(f"channel count of joint {name[:40]!r} must be an integer, found {cnt_tok[:40]!r}", ln)
+        cnt = int(cnt_tok) if len(cnt_tok) < 10 else 10 ** 9
+        if cnt not in (0, 3, 6):
+            raise h.err(f"joint {name[:40]!r} declares {cnt_tok[:20]} channels; expected 3 or 6", ln)
         chans = []
         for _ in range(cnt):
             c, cl = h.next("a channel name")
             if not _CHANNEL_RE.match(c):
-                raise h.err(f"unknown channel {c!r} on joint {name!r} (expected e.g. Xposition, Zrotation)", cl)
+                raise h.err(f"unknown channel {c[:40]!r} on joint {name[:40]!r} (expected e.g. Xposition, Zrotation)",
+                            cl)
             chans.append(c[0].upper() + c[1:].lower())
         rot = [c for c in chans if c.endswith("rotation")]
         pos = [c for c in chans if c.endswith("position")]
         if len(set(chans)) != len(chans) or len(rot) not in (0, 3) or len(pos) not in (0, 3):
-            raise h.err(f"joint {name!r} must have three distinct rotation channels (and optionally three "
+            raise h.err(f"joint {name[:40]!r} must have three distinct rotation channels (and optionally three "
                         f"position channels), found {' '.join(chans)}", ln)
         channels.append(tuple(chans))
-        while True:
-            tok, ln = h.next("'JOINT', 'End Site' or '}'")
-            up = tok.upper()
-            if up == "}":
-                return
-            if up == "JOINT":
-                joint(idx)
-            elif up == "END":
-                h.expect("Site")
-                h.expect("{")
-                end_parents.append(idx)
-                end_offsets.append(offset(f"end site of {name!r}"))
-                h.expect("}")
-            else:
-                raise h.err(f"expected 'JOINT', 'End Site' or '}}' inside joint {name!r}, found {tok!r}", ln)
+        return idx
 
     h.expect("HIERARCHY")
     tok, ln = h.next("ROOT")
     if tok.upper() != "ROOT":
-        raise h.err(f"expected 'ROOT', found {tok!r}", ln)
-    joint(-1)
+        raise h.err(f"expected 'ROOT', found {tok[:40]!r}", ln)
+    stack = [open_joint(-1)]
+    while stack:
+        cur = stack[-1]
+        tok, ln = h.next(f"'JOINT', 'End Site' or '}}' to close joint {names[cur][:40]!r}")
+        up = tok.upper()
+        if up == "}":
+            stack.pop()
+        elif up == "JOINT":
+            stack.append(open_joint(cur))
+        elif up == "END":
+            h.expect("Site", " after 'End'")
+            h.expect("{", " after 'End Site'")
+            end_parents.append(cur)
+            end_offsets.append(offset(f"end site of {names[cur][:40]!r}"))
+            h.expect("}", " to close the end site")
+        else:
+            raise h.err(f"expected 'JOINT', 'End Site' or '}}' inside joint {names[cur][:40]!r}, found {tok[:40]!r}",
+                        ln)
     if h.peek() is not None and h.peek().upper() == "ROOT":
         raise h.err("files with more than one ROOT are not supported")
     if not channels[0]:
-        raise h.err(f"the root joint {names[0]!r} has no channels")
+        raise h.err(f"the root joint {names[0][:40]!r} has no channels", 2)
     return names, parents, offsets, channels, end_parents, end_offsets
+
+
+def _token_at(body: np.ndarray, pos: int) -> str:
+    end = min(pos + 40, len(body))
+    chunk = bytes(body[pos:end])
+    for k, b in enumerate(chunk):
+        if b in (32, 9, 13, 10):
+            chunk = chunk[:k]
+            break
+    return chunk.decode("utf-8", "replace")
+
+
+def _normalize_text(data: bytes) -> bytes:
+    """Drop a UTF-8 byte-order mark; turn old Mac CR-only line ends into LF."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    if b"\n" not in data[:_SNIFF_BYTES] and b"\r" in data[:_SNIFF_BYTES]:
+        data = data.replace(b"\r", b"\n")
+    return data
+
+
+def _check_start(data: bytes, path) -> None:
+    head = data[:_SNIFF_BYTES].lstrip()
+    if not head:
+        raise BVHParseError("file is empty", path, 1)
+    if not head[:9].upper().startswith(b"HIERARCHY"):
+        line = data[: len(data[:_SNIFF_BYTES]) - len(head)].count(b"\n") + 1
+        raise BVHParseError("not a BVH file: it does not start with 'HIERARCHY'", path, line)
+
+
+def _snap_frame_time(frame_time: float, token: str) -> float:
+    """``1 / n`` for the whole frame rate ``n`` whose period, rounded or truncated to the decimals
+    written, is the token (``.0083333`` -> 1/120 s, ``0.016666`` -> 1/60 s); otherwise the value as
+    written."""
+    mant = token.lower().split("e")[0]
+    if "e" in token.lower() or "." not in mant:
+        return frame_time
+    decimals = len(mant.split(".")[1])
+    rate = round(1.0 / frame_time)
+    err = abs(1.0 / rate - frame_time) if rate >= 1 else np.inf
+    if err < 10.0 ** -decimals and err < 1e-4 * frame_time:
+        return 1.0 / rate
+    return frame_time
 
 
 def parse_bvh(data: bytes, path=None) -> BVHData:
@@ -193,26 +302,29 @@ def parse_bvh(data: bytes, path=None) -> BVHData:
     Raises:
         BVHParseError: naming the file and line of the first problem found.
     """
-    m = re.search(rb"(?m)^[ \t]*MOTION[ \t]*\r?$", data[:_MAX_HEADER_BYTES])
+    data = _normalize_text(bytes(data))
+    _check_start(data, path)
+    m = _MOTION_RE.search(data, 0, _MAX_HEADER_BYTES)
     if m is None:
-        if not data.strip():
-            raise BVHParseError("file is empty", path, 1)
-        if b"HIERARCHY" not in data[:4096]:
-            raise BVHParseError("not a BVH file: no HIERARCHY section", path, 1)
-        raise BVHParseError("no MOTION section", path, data.count(b"\n") + 1)
+        if len(data) > _MAX_HEADER_BYTES:
+            raise BVHParseError(f"no MOTION section in the first {_MAX_HEADER_BYTES >> 20} MiB (header too large)",
+                                path, data[:_MAX_HEADER_BYTES].count(b"\n") + 1)
+        raise BVHParseError("no MOTION section", path, data.rstrip().count(b"\n") + 1)
     try:
         header = data[: m.start()].decode("utf-8")
     except UnicodeDecodeError as e:
         line = data[: e.start].count(b"\n") + 1
-        raise BVHParseError("header is not valid text", path, line) from None
+        raise BVHParseError("header is not valid UTF-8 text", path, line) from None
     h = _Header(header.replace("\r", ""), path)
     names, parents, offsets, channels, end_parents, end_offsets = _parse_hierarchy(h)
     if h.peek() is not None:
-        raise h.err(f"unexpected {h.peek()!r} after the hierarchy")
+        raise h.err(f"unexpected {h.peek()[:40]!r} after the hierarchy")
     motion_line = data[: m.start()].count(b"\n") + 1
 
     # "Frames: N" and "Frame Time: t" lines
     pos = m.end()
+    if data[pos:pos + 1] == b"\n":  # the MOTION line's own end
+        pos += 1
     lines_seen = motion_line
     meta = {}
     for key in ("Frames:", "Frame Time:"):
@@ -223,36 +335,39 @@ def parse_bvh(data: bytes, path=None) -> BVHData:
             lines_seen += 1
             if raw.strip() or nl < 0:
                 break
-        text = raw.decode("utf-8", "replace").strip()
+        text = raw[:200].decode("utf-8", "replace").strip()
         if not text.lower().startswith(key.lower()):
             raise BVHParseError(f"expected {key!r} line, found {text[:40]!r}", path, lines_seen)
         meta[key] = (text[len(key):].strip(), lines_seen)
     n_txt, n_line = meta["Frames:"]
-    if not n_txt.isdigit():
-        raise BVHParseError(f"frame count must be a non-negative integer, found {n_txt!r}", path, n_line)
-    n_frames = int(n_txt)
+    if not _UINT_RE.match(n_txt):
+        raise BVHParseError(f"frame count must be a non-negative integer, found {n_txt[:40]!r}", path, n_line)
+    n_frames = int(n_txt) if len(n_txt) < 12 else MAX_FRAMES + 1
     if n_frames > MAX_FRAMES:
-        raise BVHParseError(f"frame count {n_frames} is absurd (limit {MAX_FRAMES})", path, n_line)
+        raise BVHParseError(f"frame count {n_txt[:40]} is absurd (limit {MAX_FRAMES})", path, n_line)
     ft_txt, ft_line = meta["Frame Time:"]
-    try:
-        frame_time = float(ft_txt)
-    except ValueError:
-        raise BVHParseError(f"frame time must be a number, found {ft_txt!r}", path, ft_line) from None
-    if not np.isfinite(frame_time) or frame_time <= 0 or frame_time > 10:
-        raise BVHParseError(f"frame time must be a positive number of seconds, found {ft_txt!r}", path, ft_line)
+    frame_time = _parse_number(ft_txt)
+    if frame_time is None:
+        raise BVHParseError(f"frame time must be a number, found {ft_txt[:40]!r}", path, ft_line)
+    if not 0 < frame_time <= 10:
+        raise BVHParseError(f"frame time must be a positive number of seconds (at most 10), found {ft_txt!r}",
+                            path, ft_line)
+    frame_time = _snap_frame_time(frame_time, ft_txt)
+    if n_frames == 0:
+        raise BVHParseError("file has no frames ('Frames: 0')", path, n_line)
 
     n_chan = sum(len(c) for c in channels)
     first_data_line = lines_seen + 1
     body = np.frombuffer(data, dtype=np.uint8, offset=pos) if pos < len(data) else np.zeros(0, np.uint8)
-    values, status, rows, bad_line, bad_pos, bad_count = _numparse.parse(body, n_chan, n_frames)
+    values, status, rows, bad_line, bad_pos, bad_count = _numparse.parse(body, n_chan, n_frames, MAX_ABS_VALUE)
     line_no = first_data_line + bad_line
     if status == _numparse.BAD_TOKEN:
-        end = bad_pos
-        while end < len(body) and body[end] not in (32, 9, 13, 10):
-            end += 1
-        tok = bytes(body[bad_pos:end]).decode("utf-8", "replace")[:30]
+        tok = _token_at(body, bad_pos)
         what = "a non-finite value" if tok.lower().lstrip("+-") in ("nan", "inf", "infinity") else "text"
         raise BVHParseError(f"expected a number, found {what} {tok!r}", path, line_no)
+    if status == _numparse.HUGE:
+        raise BVHParseError(f"value {_token_at(body, bad_pos)!r} is out of range (limit {MAX_ABS_VALUE:g})", path,
+                            line_no)
     if status == _numparse.BAD_COUNT:
         raise BVHParseError(f"frame line has {bad_count} values; the hierarchy declares {n_chan} channels",
                             path, line_no)
@@ -260,13 +375,11 @@ def parse_bvh(data: bytes, path=None) -> BVHData:
         raise BVHParseError(f"more frame lines than the {n_frames} declared in 'Frames:'", path, line_no)
     if rows < n_frames:
         raise BVHParseError(f"file is truncated: 'Frames: {n_frames}' but {rows} frame lines found", path,
-                            first_data_line + bad_line)
-    if n_frames == 0:
-        raise BVHParseError("file has no frames ('Frames: 0')", path, n_line)
-    return BVHData(tuple(names), np.array(parents), np.array(offsets, dtype=np.float64).reshape(-1, 3),
-                   tuple(channels), np.array(end_parents, dtype=np.int64),
-                   np.array(end_offsets, dtype=np.float64).reshape(-1, 3), frame_time, values,
-                   None if path is None else str(path))
+                            line_no)
+    return BVHData(tuple(names), np.array(parents, dtype=np.int64),
+                   np.array(offsets, dtype=np.float64).reshape(-1, 3), tuple(channels),
+                   np.array(end_parents, dtype=np.int64), np.array(end_offsets, dtype=np.float64).reshape(-1, 3),
+                   frame_time, values, None if path is None else str(path))
 
 
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
@@ -308,6 +421,27 @@ def _decode_channels(d: BVHData, up: str):
         if has_pos[0]:
             pos[:, 0] = d.values[:, pos_cols[0]]
     return q, pos, has_pos
+
+
+def resolve_scale(scale: float | str) -> float:
+    """Metres per file unit from a number or a unit name of :data:`UNIT_SCALES`.
+
+    Raises:
+        ParameterError: an unknown unit name, or a number outside ``SCALE_RANGE`` (1e-9 to 1e3 m).
+    """
+    if isinstance(scale, str):
+        if scale not in UNIT_SCALES:
+            raise ParameterError(f"unknown unit {scale!r}; known units: {', '.join(UNIT_SCALES)}")
+        return UNIT_SCALES[scale]
+    try:
+        s = float(scale)
+    except (TypeError, ValueError):
+        raise ParameterError(f"scale must be a number of metres per file unit or a unit name, got {scale!r}") \
+            from None
+    lo, hi = SCALE_RANGE
+    if not lo <= s <= hi:  # also rejects nan
+        raise ParameterError(f"scale must be between {lo:g} and {hi:g} metres per file unit, got {scale!r}")
+    return s
 
 
 def detect_scale(size_in_file_units: float) -> tuple[str, float]:
@@ -352,13 +486,8 @@ def to_motion(d: BVHData, scale: float | str | None = None, up: str = "y", name:
     if scale is None:
         size = _body_size(offsets, d.parents, q, pos, has_pos, d.end_parents, end_offsets)
         scale = detect_scale(size)[1]
-    elif isinstance(scale, str):
-        if scale not in UNIT_SCALES:
-            raise ParameterError(f"unknown unit {scale!r}; known units: {', '.join(UNIT_SCALES)}")
-        scale = UNIT_SCALES[scale]
-    scale = float(scale)
-    if not np.isfinite(scale) or scale <= 0:
-        raise ParameterError(f"scale must be a positive number of metres per file unit, got {scale}")
+    else:
+        scale = resolve_scale(scale)
     offsets, end_offsets, pos = offsets * scale, end_offsets * scale, pos * scale
     sk = Skeleton(d.names, d.parents, offsets, d.end_parents, end_offsets)
     animated = has_pos.copy()
@@ -373,6 +502,21 @@ def to_motion(d: BVHData, scale: float | str | None = None, up: str = "y", name:
     return Motion(sk, root, q, 1.0 / d.frame_time, translations, name)
 
 
+def bvh_from_bytes(data: bytes, path=None, scale: float | str | None = None, up: str = "y",
+                   name: str = "") -> Motion:
+    """A :class:`Motion` from the bytes of a BVH file (what :func:`read_bvh` does after reading).
+
+    Raises:
+        BVHParseError: the data is malformed; the message names ``path`` and the line.
+        ParameterError: ``scale`` or ``up`` is invalid.
+    """
+    d = parse_bvh(data, path)
+    try:
+        return to_motion(d, scale=scale, up=up, name=name)
+    except (SkeletonError, MotionError) as e:  # values the parser let through but the model rejects
+        raise BVHParseError(str(e), path) from e
+
+
 def read_bvh(path, scale: float | str | None = None, up: str = "y") -> Motion:
     """Read a BVH file as a :class:`Motion` (Z up, metres).
 
@@ -383,18 +527,27 @@ def read_bvh(path, scale: float | str | None = None, up: str = "y") -> Motion:
 
     Raises:
         BVHParseError: the file is malformed (the message names file and line).
+        ParameterError: ``scale`` or ``up`` is invalid.
         FileNotFoundError: the file does not exist.
     """
     p = Path(path)
-    data = p.read_bytes()
-    return to_motion(parse_bvh(data, p), scale=scale, up=up, name=p.stem)
+    with open(p, "rb") as fh:
+        _check_start(_normalize_text(fh.read(_SNIFF_BYTES)), p)  # reject garbage before reading it all
+        fh.seek(0)
+        data = fh.read()
+    return bvh_from_bytes(data, p, scale=scale, up=up, name=p.stem)
 
 
 # --------------------------------------------------------------------------- writing
 
 
+def _length_decimals(scale: float) -> int:
+    """Decimals that resolve 1e-8 m in a unit of ``scale`` metres (at least 6)."""
+    return int(min(12, max(6, np.ceil(np.log10(scale / 1e-8)))))
+
+
 def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order: str = "zyx",
-                precision: int = 6) -> str:
+                precision: int | None = None) -> str:
     """BVH text of a motion.
 
     Args:
@@ -402,21 +555,40 @@ def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order:
         up: the written file's up axis, ``"y"`` or ``"z"``.
         order: intrinsic rotation order of every joint's channels (``"zyx"`` writes Zrotation Yrotation
             Xrotation).
-        precision: decimals written for every value.
+        precision: decimals written for every value; by default 6, or more when the unit is so large
+            that 6 decimals would not resolve 1e-8 m (8 for metres).
+
+    Raises:
+        ParameterError: an option is invalid, a joint name is empty or contains whitespace, or the
+            joints are not in depth-first order.
     """
-    if isinstance(scale, str):
-        if scale not in UNIT_SCALES:
-            raise ParameterError(f"unknown unit {scale!r}; known units: {', '.join(UNIT_SCALES)}")
-        scale = UNIT_SCALES[scale]
-    if not np.isfinite(scale) or scale <= 0:
-        raise ParameterError(f"scale must be positive, got {scale}")
+    scale = resolve_scale(scale)
     order = order.lower()
     if order not in quat.EULER_ORDERS:
         raise ParameterError(f"order must be one of {', '.join(quat.EULER_ORDERS)}, got {order!r}")
     up = up.lower()
     if up not in ("y", "z"):
         raise ParameterError(f"up must be 'y' or 'z', got {up!r}")
+    if precision is None:
+        precision = _length_decimals(scale)
+    precision = int(precision)
+    if not 0 <= precision <= 17:
+        raise ParameterError(f"precision must be between 0 and 17 decimals, got {precision}")
     sk = motion.skeleton
+    for n in sk.names:
+        if not n or any(ch.isspace() for ch in n) or n in ("{", "}"):
+            raise ParameterError(f"joint name {n!r} cannot be written to BVH (empty or contains whitespace)")
+    children = [[] for _ in sk.names]
+    for j in range(1, sk.num_joints):
+        children[sk.parents[j]].append(j)
+    dfs, stack = [], [0]
+    while stack:
+        j = stack.pop()
+        dfs.append(j)
+        stack.extend(reversed(children[j]))
+    if dfs != list(range(sk.num_joints)):
+        raise ParameterError("skeleton joints are not in depth-first order; BVH needs parents listed before "
+                             "their children and each subtree contiguous")
     inv = 1.0 / scale
     offsets = sk.offsets * inv
     end_offsets = sk.end_offsets * inv
@@ -434,28 +606,29 @@ def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order:
     euler = np.rad2deg(quat.to_euler(q, order))  # (F, J, 3)
     rot_names = " ".join(f"{a.upper()}rotation" for a in order)
     six = trans is not None
-    lines = ["HIERARCHY"]
-    children = [[] for _ in sk.names]
-    for j in range(1, sk.num_joints):
-        children[sk.parents[j]].append(j)
     ends = [[] for _ in sk.names]
     for e, p in enumerate(sk.end_parents):
         ends[p].append(e)
     fmt = f"{{:.{precision}f}}"
-    dfs, stack = [], [0]
-    while stack:
-        j = stack.pop()
-        dfs.append(j)
-        stack.extend(reversed(children[j]))
-    if dfs != list(range(sk.num_joints)):
-        raise ParameterError("skeleton joints are not in depth-first order; BVH needs parents listed before "
-                             "their children and each subtree contiguous")
 
     def off(v) -> str:
-        return " ".join(fmt.format(x) for x in v)
+        return " ".join(fmt.format(0.0 if abs(x) < 0.5 * 10.0 ** -precision else x) for x in v)
 
-    def emit(j: int, depth: int):
-        ind = "\t" * depth
+    lines = ["HIERARCHY"]
+    # Iterative depth-first emission: ("open", joint, depth) writes the joint's head and schedules its
+    # children, end sites and closing brace; ("close", joint, depth) writes the brace.
+    todo: list[tuple[str, int, int]] = [("open", 0, 0)]
+    while todo:
+        kind, j, depth = todo.pop()
+        ind = "\t" * min(depth, _MAX_INDENT)  # deep chains would make the header quadratic
+        if kind == "close":
+            for e in ends[j]:
+                lines.append(f"{ind}\tEnd Site")
+                lines.append(f"{ind}\t{{")
+                lines.append(f"{ind}\t\tOFFSET {off(end_offsets[e])}")
+                lines.append(f"{ind}\t}}")
+            lines.append(f"{ind}}}")
+            continue
         kw = "ROOT" if j == 0 else "JOINT"
         lines.append(f"{ind}{kw} {sk.names[j]}")
         lines.append(f"{ind}{{")
@@ -464,19 +637,12 @@ def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order:
             lines.append(f"{ind}\tCHANNELS 6 Xposition Yposition Zposition {rot_names}")
         else:
             lines.append(f"{ind}\tCHANNELS 3 {rot_names}")
-        for k in children[j]:
-            emit(k, depth + 1)
-        for e in ends[j]:
-            lines.append(f"{ind}\tEnd Site")
-            lines.append(f"{ind}\t{{")
-            lines.append(f"{ind}\t\tOFFSET {off(end_offsets[e])}")
-            lines.append(f"{ind}\t}}")
-        lines.append(f"{ind}}}")
-
-    emit(0, 0)
+        todo.append(("close", j, depth))
+        for k in reversed(children[j]):
+            todo.append(("open", k, depth + 1))
     lines.append("MOTION")
     lines.append(f"Frames: {motion.num_frames}")
-    lines.append(f"Frame Time: {1.0 / motion.fps:.7f}")
+    lines.append(f"Frame Time: {1.0 / motion.fps:.10f}")
     f = motion.num_frames
     cols = []
     for j in range(sk.num_joints):
@@ -493,7 +659,7 @@ def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order:
 
 
 def write_bvh(path, motion: Motion, scale: float | str = "cm", up: str = "y", order: str = "zyx",
-              precision: int = 6) -> None:
+              precision: int | None = None) -> None:
     """Write ``motion`` as a BVH file, atomically (see :func:`to_bvh_text` for the options)."""
     text = to_bvh_text(motion, scale=scale, up=up, order=order, precision=precision)
     atomic_write_bytes(path, text.encode("utf-8"))
