@@ -201,3 +201,17 @@ def test_several_characters_and_parallel_worlds(body, walk):
     # threads change nothing: the same world stepped alone gives the same state
     np.testing.assert_allclose(worlds[0].data.qpos, ref.data.qpos, atol=1e-12)
     assert worlds[1].time == pytest.approx(20 / 60)
+
+
+def test_characters_and_balls_added_later_keep_old_records(body, walk):
+    w = World()
+    a = w.add_character(body, name="a")
+    a.play(walk, align_floor=False)
+    w.run(0.5)
+    w.add_projectile(2.0, 0.1)
+    b = w.add_character(body, name="b", at=(3.0, 0.0, 0.0))
+    b.play(walk, at=(3.0, 0.0, 0.0))
+    w.run(0.5)
+    ta, tb = a.trajectory(), b.trajectory()
+    assert ta.num_frames == 61 and tb.num_frames == 30  # b is recorded from the first frame after t = 0.5 s
+    np.testing.assert_allclose(ta.global_positions(), walk.resample(60.0)[:61].global_positions(), atol=1e-9)

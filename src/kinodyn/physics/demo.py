@@ -83,6 +83,7 @@ def demo(out: Path) -> list[str]:
     save(out / "walk_kinematic.bvh", walk.resample(w.config.fps))
     imps = [i for i in w.impacts if i.character == "walker"]
     total = np.sum([i.impulse for i in imps], axis=0) if imps else np.zeros(3)
+    hit = imps[0].time if imps else hit
     lines.append(f"walk_hit.bvh: {sim.num_frames} frames; ball hit at t={hit:.3f} s on "
                  f"{', '.join(sorted({i.body for i in imps}))}; impulse {np.linalg.norm(total):.1f} N s "
                  f"(ball momentum {np.linalg.norm(p_ball) if p_ball is not None else 0:.1f} kg m/s)")

@@ -386,7 +386,7 @@ class World:
         self._step = 0
         self._log = _impacts.ImpactLog(config.impact_gap)
         self._frames: list[np.ndarray] = []
-        self._mocap: list[np.ndarray] = []
+        self._mocap: list[tuple[np.ndarray, np.ndarray]] = []
         self._frame_steps: list[int] = []
         self._diverged: SimulationDivergedError | None = None
         self._pending_throws: list[tuple] = []
@@ -959,8 +959,10 @@ class World:
         return kin
 
     def _record(self) -> None:
+        # whole-state rows; adding characters or balls later only appends to qpos and mocap, so the
+        # addresses of what existed stay valid in older rows
         self._frames.append(self.data.qpos.copy())
-        self._mocap.append(np.concatenate([self.data.mocap_pos.ravel(), self.data.mocap_quat.ravel()]))
+        self._mocap.append((self.data.mocap_pos.copy(), self.data.mocap_quat.copy()))
         self._frame_steps.append(self._step)
 
     _BAD_WARNINGS = (("qacc", mujoco.mjtWarning.mjWARN_BADQACC), ("qvel", mujoco.mjtWarning.mjWARN_BADQVEL),
@@ -1017,23 +1019,23 @@ class World:
                                           self._diverged.step, self._diverged.body)
         if not self._frames:
             raise SimulationError("nothing recorded yet; step the world first")
-        q = np.array(self._frames)
+        self._ensure()
+        bm = char.map
         t = self.frame_times()
-        sel = np.ones(len(t), dtype=bool)
+        # frames recorded since the character exists
+        sel = np.array([len(q) >= char.qadr + bm.nq and (char.mocap_id < 0 or len(mc[0]) > char.mocap_id)
+                        for q, mc in zip(self._frames, self._mocap)])
         if start is not None:
             sel &= t >= start - 1e-9
         if stop is not None:
             sel &= t <= stop + 1e-9
         if not sel.any():
-            raise ParameterError(f"no recorded frame between {start} and {stop} s")
-        q = q[sel]
-        bm = char.map
-        block = q[:, char.qadr:char.qadr + bm.nq] if bm.nq else np.zeros((len(q), 0))
+            raise ParameterError(f"no recorded frame of {char.name!r} between {start} and {stop} s")
+        idx = np.nonzero(sel)[0]
+        block = np.array([self._frames[i][char.qadr:char.qadr + bm.nq] for i in idx]).reshape(len(idx), bm.nq)
         if char.mocap_id >= 0:
-            mc = np.array(self._mocap)[sel]
-            nm = self.model.nmocap
-            root_pos = mc[:, 3 * char.mocap_id:3 * char.mocap_id + 3]
-            root_quat = mc[:, 3 * nm + 4 * char.mocap_id:3 * nm + 4 * char.mocap_id + 4]
+            root_pos = np.array([self._mocap[i][0][char.mocap_id] for i in idx])
+            root_quat = np.array([self._mocap[i][1][char.mocap_id] for i in idx])
             local = qpos_to_local_rot(bm, block, root_quat)
         else:
             root_pos = block[:, :3]
