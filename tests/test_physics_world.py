@@ -215,3 +215,17 @@ def test_characters_and_balls_added_later_keep_old_records(body, walk):
     ta, tb = a.trajectory(), b.trajectory()
     assert ta.num_frames == 61 and tb.num_frames == 30  # b is recorded from the first frame after t = 0.5 s
     np.testing.assert_allclose(ta.global_positions(), walk.resample(60.0)[:61].global_positions(), atol=1e-9)
+
+
+def test_looped_walk_keeps_walking(body, walk):
+    w = World()
+    c = w.add_character(body)
+    c.play(walk, loop=True, align_floor=False)
+    w.run(5.0)
+    sim = c.trajectory()
+    x = sim.root_pos[:, 0]
+    speed = np.diff(x) * 60.0
+    assert speed.min() > 0.5  # never jumps back at a repetition
+    assert x[-1] == pytest.approx(x[0] + 5.0 * (walk.root_pos[-1, 0] - walk.root_pos[0, 0]) / walk.duration, abs=0.05)
+    # the joints repeat exactly
+    np.testing.assert_allclose(sim.local_rot[150, 1:], walk.local_rot[30, 1:], atol=1e-9)

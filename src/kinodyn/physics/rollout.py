@@ -213,9 +213,9 @@ def impact_batch(world, char, throws, duration: float = 0.5, lead: float = 0.05,
         v0 = vel + g * tau
         s = base.copy()
         s[0] = start_step * world.dt
-        k = char.clip.index(start_step)
-        s[1 + char.qadr:1 + char.qadr + char.map.nq] = char.clip.qpos[k]
-        s[1 + m.nq + char.vadr:1 + m.nq + char.vadr + char.map.nv] = char.clip.qvel[k]
+        q, v = char.clip.state(start_step)
+        s[1 + char.qadr:1 + char.qadr + char.map.nq] = q
+        s[1 + m.nq + char.vadr:1 + m.nq + char.vadr + char.map.nv] = v
         s[1 + ball._qadr:1 + ball._qadr + 7] = np.concatenate([p0, [1.0, 0.0, 0.0, 0.0]])
         s[1 + m.nq + ball._vadr:1 + m.nq + ball._vadr + 6] = np.concatenate([v0, np.zeros(3)])
         states.append(s)

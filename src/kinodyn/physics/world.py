@@ -42,7 +42,7 @@ from kinodyn.errors import (
     SimulationError,
     UnknownNameError,
 )
-from kinodyn.math import quat
+from kinodyn.math import quat, xform
 from kinodyn.motion import Motion
 from kinodyn.physics import impacts as _impacts
 from kinodyn.physics import tracking
@@ -143,7 +143,12 @@ def clip_qvel(bmap, root_pos: np.ndarray, local_rot: np.ndarray, fps: float) -> 
 
 @dataclass
 class _Clip:
-    """A motion sampled at the physics rate for one character (private)."""
+    """A motion sampled at the physics rate for one character (private).
+
+    A looped clip repeats with period ``n - 1`` samples (a cyclic clip's last frame is its first one,
+    moved on the floor); every repetition is moved on by the ground transform ``cycle`` that takes the
+    first sample's root to the last one's, so a looped walk keeps walking forward.
+    """
 
     motion: Motion
     start_step: int
@@ -151,23 +156,45 @@ class _Clip:
     qvel: np.ndarray    # (n, nv_char)
     ctrl: np.ndarray    # (n, nu_char)
     loop: bool = False
+    free_root: bool = True
+    cycle: np.ndarray | None = None  # (3,) ground transform from one repetition to the next
+
+    def _period(self) -> int:
+        return max(len(self.qpos) - 1, 1) if self.loop else len(self.qpos)
 
     def index(self, step: int) -> int:
         k = step - self.start_step
-        n = len(self.qpos)
         if self.loop:
-            return k % n
-        return min(max(k, 0), n - 1)
+            return max(k, 0) % self._period()
+        return min(max(k, 0), len(self.qpos) - 1)
 
     def indices(self, steps: np.ndarray) -> np.ndarray:
         k = steps - self.start_step
-        n = len(self.qpos)
         if self.loop:
-            return k % n
-        return np.clip(k, 0, n - 1)
+            return np.maximum(k, 0) % self._period()
+        return np.clip(k, 0, len(self.qpos) - 1)
 
     def ended(self, step: int) -> bool:
         return not self.loop and step - self.start_step >= len(self.qpos) - 1
+
+    def state(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(qpos, qvel)`` of the character's block at world step ``step``."""
+        if not self.loop:
+            i = self.index(step)
+            return self.qpos[i], (np.zeros_like(self.qvel[i]) if self.ended(step) else self.qvel[i])
+        rep, i = divmod(max(step - self.start_step, 0), self._period())
+        q, v = self.qpos[i], self.qvel[i]
+        if rep == 0 or not self.free_root or self.cycle is None:
+            return q, v
+        g = self.cycle
+        for _ in range(rep - 1):
+            g = xform.compose(self.cycle, g)
+        q, v = q.copy(), v.copy()
+        q[:2] = xform.apply(g, q[:2])
+        q[3:7] = quat.mul(quat.from_heading(g[2]), q[3:7])
+        c, s_ = np.cos(g[2]), np.sin(g[2])
+        v[:2] = (c * v[0] - s_ * v[1], s_ * v[0] + c * v[1])  # world linear velocity turns with the heading
+        return q, v
 
 
 def _lead_steps(body: CharacterBody, dt: float) -> np.ndarray:
@@ -591,7 +618,9 @@ class World:
         root_quat = None if char.mocap_id < 0 else np.repeat(self.data.mocap_quat[char.mocap_id][None], len(qpos), 0)
         ctrl = tracking.feedforward_targets(char.body, qpos, pose_to_ctrl(bm, fine.local_rot), qvel, self.dt,
                                             root_quat, lead_steps=char.lead_steps)
-        return _Clip(motion, start_step, qpos, qvel, ctrl, loop)
+        g = fine.ground()
+        cycle = xform.compose(g[-1], xform.inverse(g[0])) if loop and fine.num_frames > 1 else None
+        return _Clip(motion, start_step, qpos, qvel, ctrl, loop, bm.segments[0].kind == "free", cycle)
 
     def _floor_offset(self, char: Character, fine: Motion) -> float:
         """Vertical shift that puts the clip's lowest body point on the floor (median over time)."""
@@ -619,7 +648,8 @@ class World:
 
         Args:
             at: ``(x, y, heading)`` ground transform for the clip's first frame (default: as recorded).
-            loop: wrap around at the end (for cyclic clips); otherwise hold the last frame.
+            loop: repeat the clip (for cyclic clips: each repetition starts where the last one ended, moved
+                on the floor); otherwise hold the last frame.
             align_floor: ``True`` shifts the clip vertically so the body's lowest point touches the floor
                 (median over the clip); ``False`` plays it as is; a number shifts by that.
         """
@@ -722,11 +752,8 @@ class World:
             self.data.mocap_quat[char.mocap_id] = quat.normalize(np.asarray(quat_, dtype=np.float64))
 
     def _set_kinematic(self, c: Character) -> None:
-        k = c.clip.index(self._step)
         d = self.data
-        d.qpos[c.qadr:c.qadr + c.map.nq] = c.clip.qpos[k]
-        ended = c.clip.ended(self._step) and not c.clip.loop
-        d.qvel[c.vadr:c.vadr + c.map.nv] = 0.0 if ended else c.clip.qvel[k]
+        d.qpos[c.qadr:c.qadr + c.map.nq], d.qvel[c.vadr:c.vadr + c.map.nv] = c.clip.state(self._step)
 
     def _set_ctrl(self, c: Character) -> None:
         if c._target is not None:
@@ -802,7 +829,7 @@ class World:
             d.qpos[:] = self.data.qpos
             d.mocap_pos[:] = self.data.mocap_pos
             d.mocap_quat[:] = self.data.mocap_quat
-            d.qpos[char.qadr:char.qadr + char.map.nq] = char.clip.qpos[char.clip.index(step)]
+            d.qpos[char.qadr:char.qadr + char.map.nq] = char.clip.state(step)[0]
         else:
             d = self.data
         mujoco.mj_kinematics(m, d)
