@@ -46,7 +46,7 @@ import mujoco
 import numpy as np
 
 from kinodyn import limits as _limits
-from kinodyn.errors import MotionError, ParameterError, SkeletonError
+from kinodyn.errors import MotionError, ParameterError, SkeletonError, UnknownNameError
 from kinodyn.math import quat
 from kinodyn.skeleton import Skeleton
 
@@ -263,8 +263,6 @@ class BodyMap:
     def landmark(self, name: str) -> int:
         """Segment of a landmark name: a segment class (``pelvis``, ``chest``, ``head``, ``stomach`` =
         the lowest spine segment, ...) optionally prefixed by a side (``left_thigh``, ``right_hand``)."""
-        from kinodyn.errors import UnknownNameError
-
         key = name.lower()
         side = ""
         for s in ("left_", "right_"):
@@ -354,12 +352,11 @@ def _merge_plan(skeleton: Skeleton, lims, cfg: BodyConfig) -> tuple[np.ndarray, 
     nkids = np.bincount(skeleton.parents[1:], minlength=j_n) if j_n > 1 else np.zeros(1, dtype=int)
     nends = np.bincount(skeleton.end_parents, minlength=j_n) if len(skeleton.end_parents) else np.zeros(j_n, int)
     bone = skeleton.bone_lengths()
-    foot_sets = {}
-    try:
-        from kinodyn.contacts import find_feet
+    from kinodyn.contacts import find_feet
 
+    try:
         foot_sets = find_feet(skeleton)
-    except Exception:  # noqa: BLE001 - feet are optional; a skeleton without named feet still builds
+    except UnknownNameError:  # feet are optional: a skeleton without named feet still builds
         foot_sets = {}
     toe_joints = set()  # every foot joint below the shallowest one of its side (toes, toe ends)
     for idx in foot_sets.values():
@@ -522,8 +519,7 @@ def build_body(skeleton: Skeleton, config: BodyConfig | None = None, pd=None) ->
         elif kind == "hinge":
             jt = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=list(axis), range=list(rng))
             jt.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-        _add_geoms(body, name, c, radius, pts, kinds, skeleton, body_joint, pos, j, cfg, sole, segments, b,
-                   {int(jj): cc for jj, cc in zip(body_joint, cls)})
+        _add_geoms(body, segments[b], pts, kinds, skeleton, pos, sole, {int(jj): cc for jj, cc in zip(body_joint, cls)})
 
     # contact exclusions and masses ---------------------------------------
     seg = tuple(segments)
@@ -629,12 +625,15 @@ def _subtree_size(children, b):
     return 1 + sum(_subtree_size(children, c) for c in children[b])
 
 
-def _add_geoms(body, name, c, radius, pts, kinds, skeleton, body_joint, pos, j, cfg, sole, segments, b, spine_cls):
-    """Capsules (or a box for a foot) for one segment, in the body frame (rest orientation)."""
+def _add_geoms(body, seg: Segment, pts, kinds, skeleton: Skeleton, pos, sole: float, spine_cls: dict) -> None:
+    """Capsules (or a box for a foot or toe) for one segment, in the body frame (rest orientation).
+
+    ``pts``/``kinds``: what the segment carries (:func:`_points_of_cluster`); ``spine_cls``: segment class of
+    each kept joint, to find the child on the spine.
+    """
+    name, c, radius, j = seg.name, seg.cls, seg.radius, seg.joint
     capsule = mujoco.mjtGeom.mjGEOM_CAPSULE
-    rgba = [0.55, 0.62, 0.75, 1.0] if segments[b].side != "right" else [0.75, 0.58, 0.55, 1.0]
-    if segments[b].side == "":
-        rgba = [0.6, 0.65, 0.6, 1.0]
+    rgba = {"left": [0.55, 0.62, 0.75, 1.0], "right": [0.75, 0.58, 0.55, 1.0]}.get(seg.side, [0.6, 0.65, 0.6, 1.0])
     geoms = []
     if c == "foot":
         _foot_box(body, name, pts, radius, sole, rgba)
@@ -646,7 +645,7 @@ def _add_geoms(body, name, c, radius, pts, kinds, skeleton, body_joint, pos, j, 
     far = [p for p, k in zip(pts, kinds) if k[0] in ("merged", "end")]
     if c in ("pelvis", "chest"):
         # lateral capsule between the left/right limb roots below this segment
-        lat = _lateral_pair(skeleton, body_joint, pos, j, segments, b, c)
+        lat = _lateral_pair(skeleton, pos, seg)
         if lat is not None:
             a, e = lat
             geoms.append(("lat", a, e))
@@ -659,7 +658,7 @@ def _add_geoms(body, name, c, radius, pts, kinds, skeleton, body_joint, pos, j, 
                 geoms.append(("cap", np.zeros(3), p))
     else:
         targets = [p for p, _ in children]
-        if not targets and far or far and c in ("hand", "head"):
+        if far and (not targets or c in ("hand", "head")):  # to the farthest fingertip or head top
             targets = [max(far, key=lambda v: np.linalg.norm(v))]
         if not targets:
             # a leaf with nothing below it: continue the bone that leads to it
@@ -675,12 +674,12 @@ def _add_geoms(body, name, c, radius, pts, kinds, skeleton, body_joint, pos, j, 
         if np.linalg.norm(e - a) < 1e-6:
             body.add_geom(name=gname, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius, 0, 0], pos=a, rgba=rgba)
         else:
-            r = radius
-            body.add_geom(name=gname, type=capsule, fromto=np.concatenate([a, e]), size=[r, 0, 0], rgba=rgba)
+            body.add_geom(name=gname, type=capsule, fromto=np.concatenate([a, e]), size=[radius, 0, 0], rgba=rgba)
 
 
-def _lateral_pair(skeleton, body_joint, pos, j, segments, b, c):
+def _lateral_pair(skeleton: Skeleton, pos, seg: Segment):
     """End points of the lateral capsule of the pelvis (between the hips) or chest (between the shoulders)."""
+    j, c = seg.joint, seg.cls
     want = ("thigh",) if c == "pelvis" else ("upperarm",)
     # the shallowest left and right joints below j whose limit type makes them limb roots
     cand = {"left": [], "right": []}
@@ -698,7 +697,7 @@ def _lateral_pair(skeleton, body_joint, pos, j, segments, b, c):
     lk = min(cand["left"], key=lambda k: _depth(skeleton, k))
     rk = min(cand["right"], key=lambda k: _depth(skeleton, k))
     a, e = pos[lk] - pos[j], pos[rk] - pos[j]
-    r = segments[b].radius
+    r = seg.radius
     mid = 0.5 * (a + e)
     half = 0.5 * (a - e)
     n = np.linalg.norm(half)

@@ -15,7 +15,7 @@ is in one of two modes:
 A character can also be given a fixed root (``BodyConfig(root="fixed")``): its pelvis hangs where it is
 placed (a mocap body) and the limbs are simulated.
 
-Time advances in output frames (``fps``, default 60) of ``substeps`` physics steps each (default 5, i.e.
+Time advances in output frames (``fps``, default 60) of ``substeps`` physics steps each (default 4, i.e.
 dt = 1/240 s). After every frame the state is checked: a non-finite or exploding state raises
 :class:`~kinodyn.errors.SimulationDivergedError` naming the step and the body, and the world refuses to
 go on or to hand out its trajectory. Each frame's ``qpos`` is recorded; :meth:`World.trajectory` turns a
