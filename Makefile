@@ -12,14 +12,23 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install -q -e '.[all,dev]'
 	touch $(STAMP)
 
-demo: $(STAMP)
+# The HTML viewer's JavaScript (kinodyn.viz.html): the viewer code in viz-js/src bundled with three.js
+# from npm by esbuild (versions pinned in viz-js/package-lock.json). Needs Node.js >= 18 and npm.
+VIZ_BUNDLE := src/kinodyn/viz/assets/viewer.js
+$(VIZ_BUNDLE): viz-js/package.json viz-js/package-lock.json viz-js/src/viewer.js
+	@command -v npm >/dev/null 2>&1 || { echo "make: npm not found: the HTML viewer bundle is built from viz-js/ with Node.js (>= 18) and npm (Debian: apt-get install nodejs npm)" >&2; exit 1; }
+	cd viz-js && npm ci --no-audit --no-fund --loglevel=error || { echo "make: 'npm ci' in viz-js/ failed: the viewer bundle needs three.js and esbuild from the npm registry; is it reachable?" >&2; exit 1; }
+	cd viz-js && npm run --silent build
+
+demo: $(STAMP) $(VIZ_BUNDLE)
 	$(BIN)/kinodyn demo --out out
 
-test: $(STAMP)
+test: $(STAMP) $(VIZ_BUNDLE)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
-bench: $(STAMP)
+bench: $(STAMP) $(VIZ_BUNDLE)
 	$(BIN)/kinodyn bench io --json out/bench-io.json
+	$(BIN)/kinodyn bench viz --json out/bench-viz.json
 
 clean:
-	rm -rf out build .pytest_cache
+	rm -rf out build .pytest_cache $(VIZ_BUNDLE)

@@ -1,0 +1,16 @@
+"""Seeing results: a self-contained HTML viewer, videos, plots and exports other tools open.
+
+- :mod:`kinodyn.viz.html`: ``write(path, motions, overlays=...)``, one offline HTML page (three.js).
+- :mod:`kinodyn.viz.render`: MP4/GIF/PNG rendered offscreen on the CPU with MuJoCo (OSMesa).
+- :mod:`kinodyn.viz.plots`: matplotlib building blocks (phase timelines, error surfaces, scatter maps).
+- :mod:`kinodyn.viz.gltf`: glTF 2.0 export of a skeleton animation.
+- :mod:`kinodyn.viz.world`: what a page or a video shows (characters and overlays), shared by both.
+- :mod:`kinodyn.viz.style`: the colours every picture shares.
+
+Submodules are imported on demand (``from kinodyn.viz import html``); nothing here imports matplotlib,
+MuJoCo or pygltflib at import time.
+"""
+
+from kinodyn.viz.world import Actor, Contacts, Impact, Phases, Trajectory
+
+__all__ = ["Actor", "Contacts", "Impact", "Phases", "Trajectory"]

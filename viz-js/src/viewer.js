@@ -1,0 +1,846 @@
+// kinodyn viewer: plays characters stored in the page (script#kinodyn-data) with three.js.
+//
+// World convention: Z up, metres, seconds (as everywhere in kinodyn). The page is self-contained:
+// this file is bundled with three.js by esbuild (see viz-js/package.json) and inlined by
+// kinodyn.viz.html.write, together with the motion data (quantized joint positions, zlib + base64).
+//
+// Data format (version 1), written by kinodyn/viz/html.py:
+//   {version, title, palette, phaseColors, contactColor, options, scenes: [{name, fps, duration, characters: [...],
+//    impacts: [...], phases: [...], trajectories: [...], floor}]}
+//   character: {name, color, fps, frames, start, parents[P], joints, radius[P], pos: {enc, origin[3],
+//               scale[3], data}, feet: {left: [...], right: [...]}, contacts: {enc, data} | null}
+//   pos.enc "i16dz": int16 quantized positions (F, P, 3) (value = origin + (q + 32768) * scale),
+//   delta-coded along frames, byte planes split (all low bytes, then all high bytes), zlib-compressed,
+//   base64. "i16d": the same without zlib. contacts.enc "u8z" / "u8": one byte per frame, bit 0 left
+//   foot, bit 1 right foot.
+
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+
+const UP = new THREE.Vector3(0, 0, 1);
+const Y_AXIS = new THREE.Vector3(0, 1, 0);
+
+// ------------------------------------------------------------------------------------------ decoding
+
+function b64bytes(s) {
+  const bin = atob(s);
+  const out = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
+  return out;
+}
+
+async function inflate(bytes) {
+  if (typeof DecompressionStream === 'undefined') {
+    throw new Error('this browser cannot decompress the motion data (no DecompressionStream); ' +
+      'write the page with compress=False');
+  }
+  const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream('deflate'));
+  return new Uint8Array(await new Response(stream).arrayBuffer());
+}
+
+async function decodeBytes(block) {
+  const raw = b64bytes(block.data);
+  return block.enc.endsWith('z') ? inflate(raw) : raw;
+}
+
+// Returns Float32Array (F * P * 3) of world positions.
+async function decodePositions(pos, frames, points) {
+  const bytes = await decodeBytes(pos);
+  const n = frames * points * 3;
+  if (bytes.length !== 2 * n) throw new Error(`position data has ${bytes.length} bytes, expected ${2 * n}`);
+  const q = new Int16Array(n);
+  for (let i = 0; i < n; i++) q[i] = bytes[i] | (bytes[n + i] << 8);  // wraps into int16
+  const stride = points * 3;
+  if (pos.enc.startsWith('i16d')) {
+    for (let i = stride; i < n; i++) q[i] = q[i] + q[i - stride];  // Int16Array wraps like the writer
+  }
+  const out = new Float32Array(n);
+  const o = pos.origin, s = pos.scale;
+  for (let i = 0; i < n; i += 3) {
+    out[i] = o[0] + (q[i] + 32768) * s[0];
+    out[i + 1] = o[1] + (q[i + 1] + 32768) * s[1];
+    out[i + 2] = o[2] + (q[i + 2] + 32768) * s[2];
+  }
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------ helpers
+
+function colorOf(c) { return new THREE.Color(c); }
+
+// True when WebGL runs on a software rasterizer (SwiftShader, llvmpipe): then antialiasing is switched
+// off and the pixel ratio kept at 1, which roughly doubles the frame rate there.
+function softwareGl() {
+  try {
+    const c = document.createElement('canvas');
+    const gl = c.getContext('webgl2') || c.getContext('webgl');
+    if (!gl) return false;
+    const ext = gl.getExtension('WEBGL_debug_renderer_info');
+    const name = String(ext ? gl.getParameter(ext.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER));
+    gl.getExtension('WEBGL_lose_context')?.loseContext();
+    return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+  } catch (e) {
+    return false;
+  }
+}
+
+function lighter(c, k) { return colorOf(c).lerp(new THREE.Color(0xffffff), k); }
+
+const _m = new THREE.Matrix4();
+const _q = new THREE.Quaternion();
+const _s = new THREE.Vector3();
+const _a = new THREE.Vector3();
+const _b = new THREE.Vector3();
+const _d = new THREE.Vector3();
+
+function makeArrow(color) {
+  const g = new THREE.Group();
+  const mat = new THREE.MeshBasicMaterial({ color, transparent: true, opacity: 1, depthTest: true });
+  const shaft = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 10), mat);
+  const head = new THREE.Mesh(new THREE.ConeGeometry(1, 1, 14), mat);
+  g.add(shaft, head);
+  g.userData = { shaft, head, mat };
+  return g;
+}
+
+// Point the arrow from a to b (world), shaft radius r.
+function setArrow(arrow, a, b, r) {
+  const { shaft, head } = arrow.userData;
+  _d.subVectors(b, a);
+  const len = Math.max(_d.length(), 1e-6);
+  _d.divideScalar(len);
+  const hl = Math.min(0.35 * len, 6 * r);
+  arrow.position.copy(a);
+  arrow.quaternion.setFromUnitVectors(Y_AXIS, _d);
+  shaft.scale.set(r, len - hl, r);
+  shaft.position.set(0, (len - hl) / 2, 0);
+  head.scale.set(2.4 * r, hl, 2.4 * r);
+  head.position.set(0, len - hl / 2, 0);
+}
+
+// ------------------------------------------------------------------------------------------ character
+
+class Character {
+  constructor(spec, pos, contacts, world) {
+    this.spec = spec;
+    this.pos = pos;
+    this.contacts = contacts;  // Uint8Array (F) bit 0 left, bit 1 right, or null
+    this.P = spec.parents.length;
+    this.F = spec.frames;
+    this.cur = new Float32Array(this.P * 3);
+    this.group = new THREE.Group();
+    this.group.name = spec.name;
+    const color = colorOf(spec.color);
+    this.bones = [];
+    for (let p = 0; p < this.P; p++) if (spec.parents[p] >= 0) this.bones.push(p);
+    // Joint radius: the largest radius of the bones meeting there, so cylinders and spheres make capsules.
+    this.jr = new Float32Array(this.P);
+    for (const p of this.bones) {
+      const r = spec.radius[p];
+      this.jr[p] = Math.max(this.jr[p], r);
+      const par = spec.parents[p];
+      this.jr[par] = Math.max(this.jr[par], r);
+    }
+    for (let p = 0; p < this.P; p++) if (this.jr[p] === 0) this.jr[p] = 0.03;
+    const mat = world.software ? new THREE.MeshLambertMaterial({ color })
+      : new THREE.MeshStandardMaterial({ color, roughness: 0.55, metalness: 0.05 });
+    this.cyl = new THREE.InstancedMesh(world.cylGeo, mat, Math.max(this.bones.length, 1));
+    this.sph = new THREE.InstancedMesh(world.sphGeo, mat, this.P);
+    this.cyl.frustumCulled = false;
+    this.sph.frustumCulled = false;
+    this.group.add(this.cyl, this.sph);
+    // Bone style: lines plus small joints.
+    const lineGeo = new THREE.BufferGeometry();
+    this.lineAttr = new THREE.BufferAttribute(new Float32Array(this.bones.length * 6), 3);
+    lineGeo.setAttribute('position', this.lineAttr);
+    this.lines = new THREE.LineSegments(lineGeo, new THREE.LineBasicMaterial({ color: color.clone().multiplyScalar(0.7) }));
+    this.lines.frustumCulled = false;
+    this.dots = new THREE.InstancedMesh(world.sphGeo, new THREE.MeshBasicMaterial({ color }), this.P);
+    this.dots.frustumCulled = false;
+    this.group.add(this.lines, this.dots);
+    // Blob shadow.
+    this.shadow = new THREE.Mesh(world.discGeo, world.shadowMat);
+    this.shadow.renderOrder = 1;
+    this.group.add(this.shadow);
+    // Foot contact rings.
+    this.rings = {};
+    for (const side of ['left', 'right']) {
+      const ring = new THREE.Mesh(world.ringGeo, world.ringMat);
+      ring.visible = false;
+      ring.renderOrder = 2;
+      this.rings[side] = ring;
+      this.group.add(ring);
+    }
+    // Root trajectory on the floor.
+    const tr = new Float32Array(this.F * 3);
+    for (let f = 0; f < this.F; f++) {
+      tr[3 * f] = pos[f * this.P * 3];
+      tr[3 * f + 1] = pos[f * this.P * 3 + 1];
+      tr[3 * f + 2] = world.floor + 0.006;
+    }
+    const tg = new THREE.BufferGeometry();
+    tg.setAttribute('position', new THREE.BufferAttribute(tr, 3));
+    this.traj = new THREE.Line(tg, new THREE.LineBasicMaterial({ color, transparent: true, opacity: 0.75 }));
+    this.traj.frustumCulled = false;
+    this.group.add(this.traj);
+    // Name label (HTML).
+    this.label = document.createElement('div');
+    this.label.className = 'kd-label';
+    this.label.textContent = spec.name;
+    this.label.style.borderColor = spec.color;
+    world.labels.appendChild(this.label);
+    this.headTop = new THREE.Vector3();
+    this.frame = 0;
+  }
+
+  // Local (fractional) frame at world time t.
+  localFrame(t) {
+    const f = (t - this.spec.start) * this.spec.fps;
+    return Math.min(Math.max(f, 0), this.F - 1);
+  }
+
+  update(t, opts, world) {
+    const ff = this.localFrame(t);
+    const i0 = Math.floor(ff), i1 = Math.min(i0 + 1, this.F - 1), a = ff - i0;
+    this.frame = Math.min(Math.round(ff), this.F - 1);
+    const P3 = this.P * 3, pos = this.pos, cur = this.cur;
+    const o0 = i0 * P3, o1 = i1 * P3;
+    for (let k = 0; k < P3; k++) cur[k] = pos[o0 + k] + a * (pos[o1 + k] - pos[o0 + k]);
+    const capsules = opts.style === 'capsules';
+    this.cyl.visible = this.sph.visible = capsules;
+    this.lines.visible = this.dots.visible = !capsules;
+    let zmax = -Infinity, imax = 0;
+    for (let p = 0; p < this.P; p++) {
+      if (cur[3 * p + 2] > zmax) { zmax = cur[3 * p + 2]; imax = p; }
+    }
+    this.headTop.set(cur[3 * imax], cur[3 * imax + 1], zmax + 0.12);
+    if (capsules) {
+      let n = 0;
+      for (const p of this.bones) {
+        const par = this.spec.parents[p];
+        _a.set(cur[3 * par], cur[3 * par + 1], cur[3 * par + 2]);
+        _b.set(cur[3 * p], cur[3 * p + 1], cur[3 * p + 2]);
+        _d.subVectors(_b, _a);
+        const len = _d.length();
+        const r = this.spec.radius[p];
+        if (len < 1e-5) { _s.set(0, 0, 0); _q.identity(); } else {
+          _q.setFromUnitVectors(Y_AXIS, _d.divideScalar(len));
+          _s.set(r, len, r);
+        }
+        _a.lerp(_b, 0.5);
+        _m.compose(_a, _q, _s);
+        this.cyl.setMatrixAt(n++, _m);
+      }
+      this.cyl.instanceMatrix.needsUpdate = true;
+      _q.identity();
+      for (let p = 0; p < this.P; p++) {
+        _a.set(cur[3 * p], cur[3 * p + 1], cur[3 * p + 2]);
+        const r = this.jr[p];
+        _s.set(r, r, r);
+        _m.compose(_a, _q, _s);
+        this.sph.setMatrixAt(p, _m);
+      }
+      this.sph.instanceMatrix.needsUpdate = true;
+    } else {
+      const la = this.lineAttr.array;
+      let n = 0;
+      for (const p of this.bones) {
+        const par = this.spec.parents[p];
+        for (let c = 0; c < 3; c++) { la[n + c] = cur[3 * par + c]; la[n + 3 + c] = cur[3 * p + c]; }
+        n += 6;
+      }
+      this.lineAttr.needsUpdate = true;
+      _q.identity();
+      for (let p = 0; p < this.P; p++) {
+        _a.set(cur[3 * p], cur[3 * p + 1], cur[3 * p + 2]);
+        const r = 0.35 * this.jr[p];
+        _s.set(r, r, r);
+        _m.compose(_a, _q, _s);
+        this.dots.setMatrixAt(p, _m);
+      }
+      this.dots.instanceMatrix.needsUpdate = true;
+    }
+    // Blob shadow under the root, shrinking with height above the floor.
+    const rz = cur[2] - world.floor;
+    const sh = 0.3 * Math.max(0.4, 1.2 - 0.35 * Math.max(rz - 0.9, 0));
+    this.shadow.position.set(cur[0], cur[1], world.floor + 0.003);
+    this.shadow.scale.set(sh, sh, 1);
+    // Foot contacts.
+    const feet = this.spec.feet || {};
+    const showContacts = opts.contacts && this.contacts;
+    ['left', 'right'].forEach((side, bit) => {
+      const ring = this.rings[side];
+      const idx = feet[side];
+      if (!showContacts || !idx || !idx.length) { ring.visible = false; return; }
+      const on = (this.contacts[this.frame] >> bit) & 1;
+      ring.visible = !!on;
+      if (on) {
+        let x = 0, y = 0;
+        for (const p of idx) { x += cur[3 * p]; y += cur[3 * p + 1]; }
+        ring.position.set(x / idx.length, y / idx.length, world.floor + 0.008);
+      }
+    });
+    this.traj.visible = !!opts.trajectories;
+  }
+
+  dispose() {
+    this.label.remove();
+  }
+}
+
+// ------------------------------------------------------------------------------------------ viewer
+
+class Viewer {
+  constructor(root, data) {
+    this.root = root;
+    this.data = data;
+    this.errors = [];
+    this.ready = false;
+    this.playing = true;
+    this.speed = 1;
+    this.t = 0;
+    this.opts = { style: 'capsules', contacts: true, trajectories: false, impacts: true, phases: true,
+      labels: true, camera: 'follow' };
+    Object.assign(this.opts, data.options || {});
+    this.rafTimes = [];
+    this.renderedFrames = 0;
+    this.played = 0;  // scene seconds played since the page opened (loops included)
+    this.buildDom();
+    this.buildThree();
+    this.bindUi();
+  }
+
+  // -------------------------------------------------------------------- DOM
+  buildDom() {
+    const r = this.root;
+    const $ = (sel) => r.querySelector(sel);
+    this.el = {
+      canvasWrap: $('#kd-canvas'), labels: $('#kd-labels'), play: $('#kd-play'), scrub: $('#kd-scrub'),
+      counter: $('#kd-counter'), speed: $('#kd-speed'), camera: $('#kd-camera'), style: $('#kd-style'),
+      legend: $('#kd-legend'), timeline: $('#kd-timeline'), scene: $('#kd-scene'), fps: $('#kd-fps'),
+      overlays: r.querySelectorAll('input[data-overlay]'), title: $('#kd-title'), status: $('#kd-status'),
+      playhead: $('#kd-playhead'),
+    };
+    this.el.title.textContent = this.data.title || 'kinodyn';
+    document.title = this.data.title || 'kinodyn';
+    const scenes = this.data.scenes;
+    if (scenes.length > 1) {
+      scenes.forEach((s, i) => {
+        const o = document.createElement('option');
+        o.value = String(i);
+        o.textContent = s.name || `scene ${i + 1}`;
+        this.el.scene.appendChild(o);
+      });
+      this.el.scene.parentElement.style.display = '';
+    }
+    this.el.camera.value = this.opts.camera;
+    this.el.style.value = this.opts.style;
+    this.el.overlays.forEach((cb) => { cb.checked = !!this.opts[cb.dataset.overlay]; });
+  }
+
+  buildThree() {
+    const wrap = this.el.canvasWrap;
+    this.software = softwareGl();
+    const aa = this.opts.antialias === undefined || this.opts.antialias === 'auto' ? !this.software : !!this.opts.antialias;
+    this.renderer = new THREE.WebGLRenderer({ antialias: aa, powerPreference: 'high-performance' });
+    this.renderer.setPixelRatio(this.software ? 1 : Math.min(window.devicePixelRatio || 1, 2));
+    this.renderer.outputColorSpace = THREE.SRGBColorSpace;
+    wrap.appendChild(this.renderer.domElement);
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0xdfe6ee);
+    this.camera = new THREE.PerspectiveCamera(40, 1, 0.05, 2000);
+    this.camera.up.copy(UP);  // before the controls read it
+    this.camera.position.set(3, -6, 2.5);
+    this.controls = new OrbitControls(this.camera, this.renderer.domElement);
+    this.controls.enableDamping = true;
+    this.controls.target.set(0, 0, 0.9);
+    this.controls.maxPolarAngle = Math.PI * 0.495;
+    const hemi = new THREE.HemisphereLight(0xffffff, 0x8a8070, 1.6);
+    hemi.position.set(0, 0, 1);
+    const sun = new THREE.DirectionalLight(0xffffff, 1.7);
+    sun.position.set(4, -6, 10);
+    this.scene.add(hemi, sun);
+    // Shared geometries.
+    this.world = {
+      cylGeo: new THREE.CylinderGeometry(1, 1, 1, 14, 1),
+      sphGeo: new THREE.SphereGeometry(1, 16, 12),
+      discGeo: new THREE.CircleGeometry(1, 32),
+      ringGeo: new THREE.RingGeometry(0.07, 0.11, 28),
+      shadowMat: new THREE.MeshBasicMaterial({ color: 0x000000, transparent: true, opacity: 0.12, depthWrite: false }),
+      ringMat: new THREE.MeshBasicMaterial({ color: this.data.contactColor || '#f2b705', depthWrite: false,
+        side: THREE.DoubleSide }),
+      labels: this.el.labels,
+      floor: 0,
+      software: this.software,
+    };
+    // Shared by every character and scene: never disposed.
+    this.shared = new Set([this.world.cylGeo, this.world.sphGeo, this.world.discGeo, this.world.ringGeo,
+      this.world.shadowMat, this.world.ringMat]);
+    this.resize();
+    new ResizeObserver(() => this.resize()).observe(wrap);
+  }
+
+  resize() {
+    const w = Math.max(this.el.canvasWrap.clientWidth, 1), h = Math.max(this.el.canvasWrap.clientHeight, 1);
+    this.renderer.setSize(w, h);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+    this.drawTimeline();
+  }
+
+  // -------------------------------------------------------------------- scene
+  async loadScene(index) {
+    this.clearScene();
+    const spec = this.data.scenes[index];
+    this.sceneIndex = index;
+    if (this.el.scene.options.length) this.el.scene.value = String(index);
+    this.spec = spec;
+    this.world.floor = spec.floor || 0;
+    this.fps = spec.fps;
+    this.duration = spec.duration;
+    this.totalFrames = Math.max(1, Math.round(spec.duration * spec.fps) + 1);
+    this.el.scrub.max = String(this.totalFrames - 1);
+    this.sceneGroup = new THREE.Group();
+    this.scene.add(this.sceneGroup);
+    this.chars = [];
+    for (const c of spec.characters) {
+      const pos = await decodePositions(c.pos, c.frames, c.parents.length);
+      const contacts = c.contacts ? await decodeBytes(c.contacts) : null;
+      const ch = new Character(c, pos, contacts, this.world);
+      this.chars.push(ch);
+      this.sceneGroup.add(ch.group);
+    }
+    this.buildGround();
+    this.buildOverlays();
+    this.buildLegend();
+    this.t = 0;
+    this.frameCamera();
+    this.drawTimeline();
+  }
+
+  clearScene() {
+    if (!this.sceneGroup) return;
+    for (const ch of this.chars) ch.dispose();
+    this.sceneGroup.traverse((o) => {
+      if (o.geometry && !this.shared.has(o.geometry)) o.geometry.dispose();
+      if (o.material && !this.shared.has(o.material)) o.material.dispose();
+    });
+    this.scene.remove(this.sceneGroup);
+    this.sceneGroup = null;
+    this.chars = [];
+  }
+
+  // Bounds of every character's root over the whole scene.
+  rootBounds() {
+    const lo = new THREE.Vector3(Infinity, Infinity, Infinity), hi = new THREE.Vector3(-Infinity, -Infinity, -Infinity);
+    for (const ch of this.chars) {
+      const P3 = ch.P * 3;
+      for (let f = 0; f < ch.F; f += Math.max(1, Math.floor(ch.F / 2000))) {
+        for (let p = 0; p < ch.P; p++) {
+          _a.set(ch.pos[f * P3 + 3 * p], ch.pos[f * P3 + 3 * p + 1], ch.pos[f * P3 + 3 * p + 2]);
+          lo.min(_a); hi.max(_a);
+        }
+      }
+    }
+    if (!isFinite(lo.x)) { lo.set(-1, -1, 0); hi.set(1, 1, 2); }
+    return [lo, hi];
+  }
+
+  buildGround() {
+    const [lo, hi] = this.rootBounds();
+    const cx = Math.round((lo.x + hi.x) / 2), cy = Math.round((lo.y + hi.y) / 2);
+    const ext = Math.max(hi.x - lo.x, hi.y - lo.y);
+    const size = 2 * Math.ceil((ext + 12) / 2);
+    const floor = this.world.floor;
+    const plane = new THREE.Mesh(new THREE.PlaneGeometry(size * 1.6, size * 1.6),
+      new THREE.MeshBasicMaterial({ color: 0xeeebe4 }));
+    plane.position.set(cx, cy, floor - 0.001);
+    const grid = new THREE.GridHelper(size, size, 0x9aa3ad, 0xc4cad1);
+    grid.rotation.x = Math.PI / 2;  // GridHelper lies in XZ; the floor is XY (Z up)
+    grid.position.set(cx, cy, floor + 0.001);
+    grid.material.transparent = true;
+    grid.material.opacity = 0.8;
+    // World axes at the origin: X red, Y green (short, on the floor).
+    const axes = new THREE.Group();
+    const ax = makeArrow(0xd62728), ay = makeArrow(0x2ca02c);
+    setArrow(ax, new THREE.Vector3(0, 0, floor + 0.004), new THREE.Vector3(0.5, 0, floor + 0.004), 0.008);
+    setArrow(ay, new THREE.Vector3(0, 0, floor + 0.004), new THREE.Vector3(0, 0.5, floor + 0.004), 0.008);
+    axes.add(ax, ay);
+    this.sceneGroup.add(plane, grid, axes);
+    this.scene.fog = new THREE.Fog(0xdfe6ee, size * 0.6, size * 1.4);
+  }
+
+  buildOverlays() {
+    const spec = this.spec;
+    this.impacts = [];
+    for (const im of spec.impacts || []) {
+      const arrow = makeArrow(new THREE.Color(im.color || '#d62728'));
+      const p = new THREE.Vector3(...im.point);
+      const J = new THREE.Vector3(...im.impulse);
+      const mag = J.length();
+      const len = Math.min(Math.max(0.25, mag * (spec.impulseScale || 0.02)), 1.2);
+      const dir = mag > 1e-9 ? J.clone().divideScalar(mag) : new THREE.Vector3(1, 0, 0);
+      setArrow(arrow, p.clone().addScaledVector(dir, -len), p, 0.014);
+      const dot = new THREE.Mesh(this.world.sphGeo, new THREE.MeshBasicMaterial({ color: im.color || '#d62728', transparent: true }));
+      dot.position.copy(p);
+      dot.scale.setScalar(0.045);
+      const g = new THREE.Group();
+      g.add(arrow, dot);
+      g.visible = false;
+      this.sceneGroup.add(g);
+      this.impacts.push({ spec: im, group: g, mats: [arrow.userData.mat, dot.material] });
+    }
+    this.extraTraj = [];
+    for (const tr of spec.trajectories || []) {
+      const g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(tr.points), 3));
+      const line = new THREE.Line(g, new THREE.LineBasicMaterial({ color: tr.color || '#333333' }));
+      line.frustumCulled = false;
+      this.sceneGroup.add(line);
+      this.extraTraj.push(line);
+    }
+  }
+
+  buildLegend() {
+    const lg = this.el.legend;
+    lg.innerHTML = '';
+    this.chars.forEach((ch) => {
+      const item = document.createElement('span');
+      item.className = 'kd-legend-item';
+      const sw = document.createElement('span');
+      sw.className = 'kd-swatch';
+      sw.style.background = ch.spec.color;
+      item.append(sw, document.createTextNode(ch.spec.name));
+      lg.appendChild(item);
+    });
+  }
+
+  // Place the camera on the default side view so that every point of every character in the current
+  // frame is inside the picture (a point at offset d from the target, r to the side, needs the camera
+  // at least r / tan(fov / 2) - d.forward away).
+  frameCamera() {
+    this.updateCharacters();
+    const c = this.centroid(new THREE.Vector3());
+    const back = new THREE.Vector3(0.45, -1, 0.42).normalize();  // from the target towards the camera
+    const fwd = back.clone().negate();
+    const right = new THREE.Vector3().crossVectors(fwd, UP).normalize();
+    const up = new THREE.Vector3().crossVectors(right, fwd);
+    const tv = Math.tan(THREE.MathUtils.degToRad(this.camera.fov) / 2);
+    const th = tv * Math.max(this.camera.aspect, 0.3);
+    let dist = 3.0;
+    for (const ch of this.chars) {
+      for (let p = 0; p < ch.P; p++) {
+        _a.set(ch.cur[3 * p], ch.cur[3 * p + 1], ch.cur[3 * p + 2]).sub(c);
+        const need = Math.max(Math.abs(_a.dot(right)) / th, Math.abs(_a.dot(up)) / tv) - _a.dot(fwd);
+        dist = Math.max(dist, need * 1.15 + 0.5);
+      }
+    }
+    this.controls.target.copy(c);
+    this.camera.position.copy(c).addScaledVector(back, dist);
+    this.camera.near = Math.max(0.02, dist / 500);
+    this.camera.far = dist * 40 + 200;
+    this.camera.updateProjectionMatrix();
+    this.controls.update();
+  }
+
+  // Middle of the characters' roots in the current frame (z lowered a little: look at the chest).
+  centroid(out) {
+    if (!this.chars.length) return out.set(0, 0, 0.9);
+    const lo = this._lo || (this._lo = new THREE.Vector3()), hi = this._hi || (this._hi = new THREE.Vector3());
+    lo.set(Infinity, Infinity, Infinity);
+    hi.set(-Infinity, -Infinity, -Infinity);
+    for (const ch of this.chars) {
+      lo.min(_a.set(ch.cur[0], ch.cur[1], ch.cur[2]));
+      hi.max(_a);
+    }
+    out.addVectors(lo, hi).multiplyScalar(0.5);
+    out.z = Math.max(out.z * 0.85, this.world.floor + 0.5);
+    return out;
+  }
+
+  // -------------------------------------------------------------------- UI
+  bindUi() {
+    const el = this.el;
+    el.play.addEventListener('click', () => this.setPlaying(!this.playing));
+    el.scrub.addEventListener('input', () => { this.seekFrame(Number(el.scrub.value)); });
+    el.speed.addEventListener('change', () => { this.speed = Number(el.speed.value); });
+    el.camera.addEventListener('change', () => { this.opts.camera = el.camera.value; });
+    el.style.addEventListener('change', () => { this.opts.style = el.style.value; });
+    el.scene.addEventListener('change', () => { this.loadScene(Number(el.scene.value)); });
+    el.overlays.forEach((cb) => cb.addEventListener('change', () => {
+      this.opts[cb.dataset.overlay] = cb.checked;
+      this.drawTimeline();
+    }));
+    window.addEventListener('keydown', (e) => {
+      if (e.target && (e.target.tagName === 'SELECT' || e.target.tagName === 'INPUT' && e.target.type !== 'range')) return;
+      if (e.code === 'Space') { this.setPlaying(!this.playing); e.preventDefault(); }
+      else if (e.code === 'ArrowRight') { this.setPlaying(false); this.seekFrame(this.frameIndex() + 1); }
+      else if (e.code === 'ArrowLeft') { this.setPlaying(false); this.seekFrame(this.frameIndex() - 1); }
+      else if (e.code === 'Home') { this.seekFrame(0); }
+    });
+    const tl = el.timeline;
+    const seekAt = (e) => {
+      const r = tl.getBoundingClientRect();
+      const x0 = this.tlLeft || 0;
+      const u = (e.clientX - r.left - x0) / Math.max(r.width - x0 - 8, 1);
+      this.seek(Math.min(Math.max(u, 0), 1) * this.duration);
+    };
+    let drag = false;
+    tl.addEventListener('pointerdown', (e) => { drag = true; seekAt(e); });
+    window.addEventListener('pointermove', (e) => { if (drag) seekAt(e); });
+    window.addEventListener('pointerup', () => { drag = false; });
+  }
+
+  setPlaying(p) {
+    this.playing = p;
+    this.el.play.textContent = p ? '❚❚' : '▶';
+    this.el.play.title = p ? 'pause (space)' : 'play (space)';
+  }
+
+  frameIndex() { return Math.min(Math.floor(this.t * this.fps + 1e-6), this.totalFrames - 1); }
+
+  seekFrame(f) { this.seek(Math.min(Math.max(f, 0), this.totalFrames - 1) / this.fps); }
+
+  seek(t) { this.t = Math.min(Math.max(t, 0), this.duration); }
+
+  // -------------------------------------------------------------------- timeline (phases, impacts)
+  timelineRows() {
+    const rows = [];
+    if (this.opts.phases) for (const ph of this.spec?.phases || []) rows.push({ kind: 'phase', ph });
+    if (this.opts.impacts && (this.spec?.impacts || []).length) rows.push({ kind: 'impacts' });
+    return rows;
+  }
+
+  drawTimeline() {
+    const cv = this.el.timeline;
+    if (!this.spec) return;
+    const rows = this.timelineRows();
+    const rowH = 16, pad = 4;
+    const h = rows.length ? rows.length * (rowH + 3) + 2 * pad + 12 : 0;
+    cv.style.height = `${h}px`;
+    cv.style.display = rows.length ? '' : 'none';
+    if (!rows.length) return;
+    const dpr = window.devicePixelRatio || 1;
+    const w = cv.clientWidth;
+    if (cv.width !== Math.round(w * dpr) || cv.height !== Math.round(h * dpr)) {
+      cv.width = Math.round(w * dpr);
+      cv.height = Math.round(h * dpr);
+    }
+    const ctx = cv.getContext('2d');
+    ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    ctx.clearRect(0, 0, w, h);
+    ctx.font = '11px system-ui, sans-serif';
+    ctx.textBaseline = 'middle';
+    let labelW = 60;
+    for (const r of rows) labelW = Math.max(labelW, ctx.measureText(r.kind === 'phase' ? r.ph.label : 'impacts').width + 14);
+    labelW = Math.min(labelW, w * 0.35);
+    this.tlLeft = labelW;
+    const x0 = labelW, x1 = w - 8, D = Math.max(this.duration, 1e-6);
+    const X = (t) => x0 + (x1 - x0) * (t / D);
+    const colors = this.data.phaseColors || {};
+    rows.forEach((r, i) => {
+      const y = pad + i * (rowH + 3);
+      ctx.fillStyle = '#333';
+      ctx.fillText(r.kind === 'phase' ? r.ph.label : 'impacts', 4, y + rowH / 2, labelW - 8);
+      ctx.fillStyle = '#eceff3';
+      ctx.fillRect(x0, y, x1 - x0, rowH);
+      if (r.kind === 'phase') {
+        for (const [a, b, lab] of r.ph.spans) {
+          ctx.fillStyle = (r.ph.colors && r.ph.colors[lab]) || colors[lab] || '#888';
+          ctx.fillRect(X(a), y, Math.max(X(b) - X(a), 1), rowH);
+        }
+      } else {
+        for (const im of this.spec.impacts) {
+          ctx.fillStyle = im.color || '#d62728';
+          ctx.fillRect(X(im.t) - 1.5, y, 3, rowH);
+        }
+      }
+    });
+    // Legend of phase labels.
+    const labs = new Map();
+    for (const r of rows) if (r.kind === 'phase') for (const s of r.ph.spans) labs.set(s[2], (r.ph.colors && r.ph.colors[s[2]]) || colors[s[2]] || '#888');
+    let lx = x0;
+    const ly = h - 8;
+    const order = Object.keys(colors);  // the phase colours' order (DS, LS, RS, flight...), others after
+    const rank = (l) => (order.indexOf(l) + order.length + 1) % (order.length + 1);
+    for (const [lab, col] of [...labs].sort((a, b) => rank(a[0]) - rank(b[0]))) {
+      ctx.fillStyle = col;
+      ctx.fillRect(lx, ly - 4, 9, 9);
+      ctx.fillStyle = '#333';
+      ctx.fillText(lab, lx + 12, ly);
+      lx += ctx.measureText(lab).width + 26;
+    }
+    this.tlX0 = x0;
+    this.tlX1 = x1;
+    this.el.playhead.style.height = `${h - 14}px`;
+    this.movePlayhead();
+  }
+
+  // The playhead is a composited div over the static timeline canvas: moving it repaints nothing.
+  movePlayhead() {
+    const ph = this.el.playhead;
+    if (!this.spec || this.el.timeline.style.display === 'none') { ph.style.display = 'none'; return; }
+    ph.style.display = '';
+    const u = Math.min(Math.max(this.t / Math.max(this.duration, 1e-6), 0), 1);
+    ph.style.transform = `translateX(${(this.tlX0 + (this.tlX1 - this.tlX0) * u - 1).toFixed(1)}px)`;
+  }
+
+  // -------------------------------------------------------------------- frame loop
+  updateCharacters() {
+    for (const ch of this.chars || []) ch.update(this.t, this.opts, this.world);
+  }
+
+  updateOverlays() {
+    const hold = 0.8;
+    for (const im of this.impacts || []) {
+      const dt = this.t - im.spec.t;
+      const on = this.opts.impacts && dt >= -0.02 && dt <= hold;
+      im.group.visible = on;
+      if (on) {
+        const op = dt <= 0.15 ? 1 : Math.max(0, 1 - (dt - 0.15) / (hold - 0.15));
+        for (const m of im.mats) m.opacity = op;
+      }
+    }
+    for (const l of this.extraTraj || []) l.visible = !!this.opts.trajectories;
+  }
+
+  updateCamera() {
+    const mode = this.opts.camera;
+    this.controls.autoRotate = mode === 'orbit';
+    this.controls.autoRotateSpeed = 1.2;
+    if (mode === 'follow' || mode === 'orbit') {
+      const c = this.centroid(this._c || (this._c = new THREE.Vector3()));
+      const step = c.sub(this.controls.target).multiplyScalar(0.12);
+      this.controls.target.add(step);
+      this.camera.position.add(step);
+    }
+    this.controls.update();
+  }
+
+  updateLabels() {
+    const show = this.opts.labels;
+    const w = this.el.canvasWrap.clientWidth, h = this.el.canvasWrap.clientHeight;
+    for (const ch of this.chars || []) {
+      if (!show) { ch.label.style.display = 'none'; continue; }
+      _a.copy(ch.headTop).project(this.camera);
+      if (_a.z > 1 || _a.z < -1) { ch.label.style.display = 'none'; continue; }
+      ch.label.style.display = '';
+      ch.label.style.transform = `translate(-50%, -100%) translate(${((_a.x + 1) / 2 * w).toFixed(1)}px, ${((1 - _a.y) / 2 * h).toFixed(1)}px)`;
+    }
+  }
+
+  // Text and slider updates make the browser lay out and repaint, which costs more than the 3-D frame
+  // under software rendering: while playing they are refreshed at most 12 times a second.
+  updateHud(force = false) {
+    const now = performance.now();
+    if (!force && this.playing && now - (this.hudT || 0) < 80) return;
+    this.hudT = now;
+    const f = this.frameIndex();
+    const digits = String(this.totalFrames - 1).length;
+    const text = `frame ${String(f).padStart(digits, '\u2007')} / ${this.totalFrames - 1}   ${this.t.toFixed(2)} s`;
+    if (this.el.counter.textContent !== text) this.el.counter.textContent = text;
+    if (Number(this.el.scrub.value) !== f) this.el.scrub.value = String(f);
+    if (now - (this.fpsT || 0) > 1000) {
+      this.fpsT = now;
+      this.el.fps.textContent = `${this.measuredFps().toFixed(0)} fps`;
+    }
+  }
+
+  measuredFps(windowMs = 2000) {
+    const ts = this.rafTimes;
+    if (ts.length < 2) return 0;
+    const last = ts[ts.length - 1];
+    let i = ts.length - 1;
+    while (i > 0 && last - ts[i - 1] <= windowMs) i--;
+    const n = ts.length - 1 - i;
+    return n > 0 ? (1000 * n) / (last - ts[i]) : 0;
+  }
+
+  tick(now) {
+    // Real time, except after a long stall (a hidden tab): then resume without a jump.
+    const dt = this.lastNow === undefined ? 0 : Math.min((now - this.lastNow) / 1000, 0.5);
+    this.lastNow = now;
+    this.rafTimes.push(now);
+    if (this.rafTimes.length > 600) this.rafTimes.splice(0, this.rafTimes.length - 600);
+    if (this.playing && this.duration > 0) {
+      this.t += dt * this.speed;
+      this.played += dt * this.speed;
+      if (this.t > this.duration) this.t = this.opts.loop === false ? this.duration : this.t % this.duration;
+    }
+    this.updateCharacters();
+    this.updateOverlays();
+    this.updateCamera();
+    this.renderer.render(this.scene, this.camera);
+    this.updateLabels();
+    this.updateHud(this.t !== this.lastT && !this.playing);
+    this.lastT = this.t;
+    this.movePlayhead();
+    this.renderedFrames++;
+  }
+
+  start() {
+    const loop = (now) => {
+      try { this.tick(now); } catch (e) { this.fail(e); return; }
+      requestAnimationFrame(loop);
+    };
+    requestAnimationFrame(loop);
+  }
+
+  fail(e) {
+    this.errors.push(String(e && e.stack || e));
+    this.el.status.textContent = `error: ${e && e.message || e}`;
+    this.el.status.style.display = '';
+    console.error(e);
+  }
+}
+
+// ------------------------------------------------------------------------------------------ entry
+
+async function main() {
+  const root = document.getElementById('kd-root');
+  const boot = { ready: false, errors: [] };
+  window.kinodynViewer = boot;
+  let viewer;
+  try {
+    const data = JSON.parse(document.getElementById('kinodyn-data').textContent);
+    viewer = new Viewer(root, data);
+    // The page's small scripting API (used by tests and by people at the console).
+    const api = {
+      viewer,
+      ready: false,
+      fps: (ms) => viewer.measuredFps(ms),
+      play: () => viewer.setPlaying(true),
+      pause: () => viewer.setPlaying(false),
+      seek: (t) => viewer.seek(t),
+      seekFrame: (f) => viewer.seekFrame(f),
+      setSpeed: (s) => { viewer.speed = s; viewer.el.speed.value = String(s); },
+      set: (k, v) => { viewer.opts[k] = v; },
+      loadScene: (i) => viewer.loadScene(i),
+    };
+    Object.defineProperties(api, {
+      frame: { get: () => viewer.frameIndex() },
+      time: { get: () => viewer.t },
+      playing: { get: () => viewer.playing },
+      totalFrames: { get: () => viewer.totalFrames },
+      renderedFrames: { get: () => viewer.renderedFrames },
+      played: { get: () => viewer.played },
+      errors: { get: () => viewer.errors },
+    });
+    window.kinodynViewer = api;
+    await viewer.loadScene(0);
+    viewer.setPlaying(viewer.opts.autoplay !== false);
+    viewer.el.status.style.display = 'none';
+    viewer.start();
+    api.ready = true;
+  } catch (e) {
+    if (viewer) viewer.fail(e); else {
+      boot.errors.push(String(e));
+      const st = document.getElementById('kd-status');
+      if (st) st.textContent = `error: ${e.message || e}`;
+      console.error(e);
+    }
+  }
+}
+
+if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', main);
+else main();
