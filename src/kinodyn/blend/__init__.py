@@ -1,0 +1,57 @@
+"""Support-phase synchronized blending (Ménardais, Multon, Kulpa, Arnaldi).
+
+A real-time motion mixer whose actions start and stop at any time, with priorities; the support
+phases of the actions (right, left, double support, flight) are synchronized before blending, so feet
+do not slide when a motion with the left foot down meets one with the right foot down.
+
+Modules: :mod:`~kinodyn.blend.phases` (sequences, the algebra, extension: sections 4.1-4.3),
+:mod:`~kinodyn.blend.sync` (chronological organization, section 5.1, appendix A),
+:mod:`~kinodyn.blend.timewarp` (durations and time warp, 5.2-5.3), :mod:`~kinodyn.blend.mixer`
+(actions, ramps, priorities, blending), :mod:`~kinodyn.blend.footlock` (support constraints after
+blending), :mod:`~kinodyn.blend.script` (YAML scripts),
+:mod:`~kinodyn.blend.plots` (figures 9 and 10).
+"""
+
+from kinodyn.blend.mixer import BlendConfig, ClipLibrary, Mixer, Pose
+from kinodyn.blend.phases import (
+    DS,
+    ERR,
+    FLIGHT,
+    LS,
+    RS,
+    Phase,
+    PhaseConfig,
+    PhaseSequence,
+    combine,
+    compatible,
+)
+from kinodyn.blend.script import BlendResult, Script, load_script, parse_script, run_script
+from kinodyn.blend.sync import SyncConfig, Synchronizer, resolve
+from kinodyn.blend.timewarp import WarpConfig, WarpPlanner
+
+__all__ = [
+    "DS",
+    "ERR",
+    "FLIGHT",
+    "LS",
+    "RS",
+    "BlendConfig",
+    "BlendResult",
+    "ClipLibrary",
+    "Mixer",
+    "Phase",
+    "PhaseConfig",
+    "PhaseSequence",
+    "Pose",
+    "Script",
+    "SyncConfig",
+    "Synchronizer",
+    "WarpConfig",
+    "WarpPlanner",
+    "combine",
+    "compatible",
+    "load_script",
+    "parse_script",
+    "resolve",
+    "run_script",
+]

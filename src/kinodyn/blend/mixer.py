@@ -1,0 +1,1119 @@
+"""The real-time motion mixer: actions with priorities and ramps, synchronized, blended per frame.
+
+Ménardais, Multon, Kulpa, Arnaldi, support-phase synchronization, sections 3 and 5 (after the
+blending module of their reference [Lba]). An *action* plays a clip (or a clip adapted by a parametric
+model, such as a time scaling) and is started and stopped at any time. Its weight ramps up from 0
+over ``ramp_in`` seconds after it starts (``t1 -> t2`` of figure 2) and down to 0 over ``ramp_out``
+seconds after it is stopped (``t3 -> t4``), with a smoothstep. *Priorities* resolve the weights:
+actions of a higher priority take the legs and body first (their summed activation, capped at 1, is
+their share), lower ones get what is left, and a neutral double-support pose of lowest priority takes
+the remainder, so the character stands when nothing plays. Actions of the same priority share by
+activation.
+
+With ``synchronize=True`` every character runs a :class:`~kinodyn.blend.sync.Synchronizer` and a
+:class:`~kinodyn.blend.timewarp.WarpPlanner`: actions start at a step boundary, their support phases
+are organized so that no step mixes a left and a right single support, and each action's time is
+warped to the common steps. With ``synchronize=False`` (the baseline) actions start when asked and
+play at their own speed.
+
+Blending: local joint rotations are averaged with the weights (normalized weighted sum of
+hemisphere-aligned quaternions, or Markley's eigenvector mean); the root is blended in each action's
+*facing frame*: its height and its rotation without heading are averaged, and its motion over the
+frame (floor displacement and heading change, expressed in the action's own facing frame) is averaged
+and integrated in the character's frame, so a mix of straight walks goes straight. With
+synchronization the support constraints are then enforced (:mod:`kinodyn.blend.footlock`): the
+planted feet stay where they landed.
+
+Per-frame evaluation is batched over characters: every array is ``(N, S, ...)`` for ``N`` characters
+and ``S`` action slots (numpy, with the frame blend and the leg IK as compiled kernels looping over
+characters); Python runs per character only when one of its steps ends or on a command.
+Shapes: ``J`` joints. Units: seconds, metres, radians.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from kinodyn.blend import phases as _phases
+from kinodyn.blend.phases import PhaseConfig, PhaseSequence
+from kinodyn.blend.sync import SyncConfig, Synchronizer
+from kinodyn.blend.timewarp import WarpConfig, WarpPlanner, eval_poly
+from kinodyn.errors import MotionError, ParameterError, UnknownNameError
+from kinodyn.math import quat, xform
+from kinodyn.motion import Motion
+from kinodyn.skeleton import Skeleton
+
+__all__ = [
+    "ActionState",
+    "BlendConfig",
+    "ClipLibrary",
+    "Mixer",
+    "Pose",
+    "Recording",
+    "activation",
+    "blend_frames",
+    "blend_frames_fast",
+    "blend_rotations",
+    "priority_weights",
+    "smoothstep",
+]
+
+_AVERAGES = ("nlerp", "markley")
+
+
+@dataclass(frozen=True)
+class BlendConfig:
+    """Mixer parameters.
+
+    Attributes:
+        synchronize: run the support-phase synchronization (False: the unsynchronized baseline).
+        sync: :class:`~kinodyn.blend.sync.SyncConfig` (``nk``).
+        warp: :class:`~kinodyn.blend.timewarp.WarpConfig` (spline tension).
+        ramp_in: default activation duration ``t2 - t1`` in seconds.
+        ramp_out: default deactivation duration ``t4 - t3`` in seconds.
+        max_actions: action slots per character (actions playing or fading at once).
+        average: ``"nlerp"`` (normalized weighted sum, fast) or ``"markley"`` (eigenvector mean).
+        constraints: enforce the support after blending (:mod:`kinodyn.blend.footlock`): planted feet
+            stay where they landed (root follows the primary planted foot, two-bone IK pins the
+            other). ``"auto"``: on with synchronization, off without (without synchronization the
+            actions disagree on which foot carries the body, so there is no single constraint to
+            enforce); ``"on"`` / ``"off"`` force it.
+        root_halflife: seconds for the root to follow the primary planted foot (IK pins the feet in
+            the meantime; a short halflife keeps the legs natural, a non-zero one keeps the root
+            smooth when the support changes foot).
+        release_halflife: seconds over which a lifted foot's IK correction fades out.
+        max_foot_offset: metres a planted foot may be held away from where the blended pose puts it;
+            beyond that, or beyond what the leg reaches, it follows the pose (it slides) instead of
+            stretching the leg.
+    """
+
+    synchronize: bool = True
+    sync: SyncConfig = SyncConfig()
+    warp: WarpConfig = WarpConfig()
+    ramp_in: float = 0.4
+    ramp_out: float = 0.4
+    max_actions: int = 6
+    average: str = "nlerp"
+    constraints: str = "auto"
+    root_halflife: float = 0.04
+    release_halflife: float = 0.05
+    max_foot_offset: float = 0.5
+
+    @property
+    def enforce(self) -> bool:
+        """Whether support constraints are enforced (see ``constraints``)."""
+        return self.constraints == "on" or (self.constraints == "auto" and self.synchronize)
+
+    def __post_init__(self):
+        for name in ("ramp_in", "ramp_out"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ParameterError(f"{name} must be a non-negative number of seconds, got {v}")
+        if not isinstance(self.max_actions, int) or self.max_actions < 1:
+            raise ParameterError(f"max_actions must be an integer >= 1, got {self.max_actions!r}")
+        if self.constraints not in ("auto", "on", "off"):
+            raise ParameterError(f"constraints must be 'auto', 'on' or 'off', got {self.constraints!r}")
+        if not (np.isfinite(self.max_foot_offset) and self.max_foot_offset > 0):
+            raise ParameterError(f"max_foot_offset must be a positive number of metres, got {self.max_foot_offset}")
+        for name in ("root_halflife", "release_halflife"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ParameterError(f"{name} must be a non-negative number of seconds, got {v}")
+        if self.average not in _AVERAGES:
+            raise ParameterError(f"average must be one of {', '.join(_AVERAGES)}, got {self.average!r}")
+
+
+class Pose(NamedTuple):
+    """Poses of ``N`` characters: ``root_pos (N, 3)`` and ``local_rot (N, J, 4)``."""
+
+    root_pos: np.ndarray
+    local_rot: np.ndarray
+
+
+# ----------------------------------------------------------------------------------------- weights
+
+
+def smoothstep(x):
+    """``3x^2 - 2x^3`` on ``[0, 1]``, 0 below, 1 above."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def activation(t, t_on, ramp_in, t_off, ramp_out):
+    """Activation level of actions at time ``t`` (figure 2): 0 before ``t_on``, up to 1 at ``t_on +
+    ramp_in``, down from ``t_off`` to 0 at ``t_off + ramp_out``. Arrays broadcast; ``inf`` disables."""
+    t = np.asarray(t, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        up = np.where(np.asarray(ramp_in) > 0, smoothstep((t - t_on) / np.maximum(ramp_in, 1e-12)),
+                      (t >= t_on).astype(np.float64))
+        down = np.where(np.asarray(ramp_out) > 0, smoothstep((t - t_off) / np.maximum(ramp_out, 1e-12)),
+                        (t >= t_off).astype(np.float64))
+    up = np.where(np.isfinite(t_on), up, 0.0)
+    down = np.where(np.isfinite(t_off), down, 0.0)
+    return up * (1.0 - down)
+
+
+def priority_weights(act, prio) -> tuple[np.ndarray, np.ndarray]:
+    """Blend weights from activations and priorities.
+
+    Args:
+        act: ``(N, S)`` activation levels in ``[0, 1]``.
+        prio: ``(N, S)`` priorities (higher first); empty slots may hold any value with ``act = 0``.
+
+    Returns:
+        ``w (N, S)`` and the neutral pose's weight ``(N,)``; they sum to 1 per character. A priority
+        level's share is ``min(1, sum of its activations)`` of what higher levels left, split among
+        its actions in proportion to their activation.
+    """
+    act = np.asarray(act, dtype=np.float64)
+    prio = np.asarray(prio, dtype=np.float64)
+    same = prio[:, :, None] == prio[:, None, :]                      # (N, S, S)
+    group = np.einsum("nst,nt->ns", same, act)                        # summed activation of s's level
+    cover = np.minimum(group, 1.0)
+    higher = prio[:, None, :] > prio[:, :, None]                      # t strictly above s
+    # (1 - cover_t) once per higher level: average the log over the members of each level
+    members = same.sum(axis=2)                                        # (N, S) size of each level
+    with np.errstate(divide="ignore"):
+        logfree = np.log(np.maximum(1.0 - cover, 0.0)) / members      # -inf when a level covers all
+    logfree = np.where(np.isfinite(logfree), logfree, -np.inf)
+    above = np.einsum("nst,nt->ns", higher, np.where(np.isfinite(logfree), logfree, 0.0))
+    blocked = np.einsum("nst,nt->ns", higher, ~np.isfinite(logfree)) > 0
+    rem = np.where(blocked, 0.0, np.exp(above))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = np.where(group > 0, rem * cover * act / np.where(group > 0, group, 1.0), 0.0)
+    return w, np.clip(1.0 - w.sum(axis=1), 0.0, 1.0)
+
+
+def blend_rotations(q, w, ref, wref, method: str = "nlerp") -> np.ndarray:
+    """Weighted average of rotations ``q (N, S, J, 4)`` with weights ``w (N, S)`` and a reference pose
+    ``ref (J, 4)`` of weight ``wref (N,)`` (the neutral pose); returns ``(N, J, 4)``.
+
+    ``nlerp``: every quaternion is put in the hemisphere of the one with the most weight and the weighted
+    sum is normalized (the first-order approximation of the chordal mean; within a fraction of a degree
+    of it for rotations less than about 30 degrees apart). ``markley``: the eigenvector mean of
+    :func:`kinodyn.math.quat.average`.
+    """
+    if method == "markley":
+        allq = np.concatenate([q, np.broadcast_to(ref, (q.shape[0], 1) + ref.shape)], axis=1)
+        allw = np.concatenate([w, wref[:, None]], axis=1)
+        return quat.average(allq, np.broadcast_to(allw[:, :, None], allq.shape[:-1]), axis=1)
+    # hemisphere of the rotation with the most weight (the neutral pose's or a slot's), per joint
+    top = np.argmax(w, axis=1)
+    anchor = np.where((wref >= w.max(axis=1))[:, None, None], ref, q[np.arange(len(q)), top])
+    sign = np.where(np.einsum("nsjc,njc->nsj", q, anchor) < 0.0, -1.0, 1.0)
+    sref = np.where(np.einsum("jc,njc->nj", ref, anchor) < 0.0, -1.0, 1.0)
+    acc = np.einsum("nsjc,nsj->njc", q, sign * w[:, :, None]) + (wref[:, None] * sref)[..., None] * ref
+    return acc / np.maximum(np.linalg.norm(acc, axis=-1, keepdims=True), 1e-12)
+
+
+def _rotate(q, v):
+    """``quat.mul_vec`` for ``q (..., 4)`` and ``v (..., 3)`` written out (no ``np.cross`` overhead)."""
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return np.stack([vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
+                     vz + w * tz + (x * ty - y * tx)], axis=-1)
+
+
+def blend_frames(rot_db, i0, a, w, ref, wref) -> np.ndarray:
+    """Weighted blend of clip frames, each interpolated between two database frames (numpy reference).
+
+    Args:
+        rot_db: ``(F, J, 4)`` packed frames (consecutive frames of a clip in the same hemisphere).
+        i0: ``(N, S)`` first frame of each sample; ``a (N, S)`` the fraction toward ``i0 + 1``.
+        w: ``(N, S)`` weights; ``ref (J, 4)`` the neutral pose with weights ``wref (N,)``.
+
+    Returns:
+        ``(N, J, 4)``: the normalized sum of ``w * lerp(frame i0, frame i0 + 1)`` and ``wref * ref``,
+        every quaternion first put in the hemisphere of the one with the most weight.
+    """
+    N, S = w.shape
+    top = np.argmax(w, axis=1)
+    rows_n = np.arange(N)
+    anchor = np.where((wref >= w[rows_n, top])[:, None, None], ref, rot_db[i0[rows_n, top]])
+    sref = np.where(np.einsum("jc,njc->nj", ref, anchor) < 0.0, -1.0, 1.0)
+    q = (wref[:, None] * sref)[..., None] * ref
+    for k in range(S):
+        live = w[:, k] > 0.0
+        if not live.any():
+            continue
+        rows = None if live.all() else np.nonzero(live)[0]
+        ik = i0[:, k] if rows is None else i0[rows, k]
+        wk = w[:, k] if rows is None else w[rows, k]
+        ak = a[:, k] if rows is None else a[rows, k]
+        r0 = rot_db[ik]
+        r1 = rot_db[ik + 1]
+        sign = np.where(np.einsum("njc,njc->nj", r0, anchor if rows is None else anchor[rows]) < 0.0, -1.0, 1.0)
+        c1 = (wk * ak)[:, None] * sign
+        c0 = wk[:, None] * sign - c1
+        r0 *= c0[..., None]
+        r1 *= c1[..., None]
+        r0 += r1
+        if rows is None:
+            q += r0
+        else:
+            q[rows] += r0
+    q /= np.maximum(np.sqrt(np.einsum("njc,njc->nj", q, q)), 1e-12)[..., None]
+    return q
+
+
+@numba.njit(cache=True)
+def _blend_kernel(rot_db, i0, a, w, ref, wref, out):  # pragma: no cover - compiled
+    n_chars, n_slots = w.shape
+    n_joints = ref.shape[0]
+    for n in range(n_chars):
+        top = -1
+        best = wref[n]
+        for k in range(n_slots):
+            if w[n, k] > best:
+                best = w[n, k]
+                top = k
+        for j in range(n_joints):
+            if top < 0:
+                x0, x1, x2, x3 = ref[j, 0], ref[j, 1], ref[j, 2], ref[j, 3]
+            else:
+                f = i0[n, top]
+                x0, x1, x2, x3 = rot_db[f, j, 0], rot_db[f, j, 1], rot_db[f, j, 2], rot_db[f, j, 3]
+            s = 1.0 if ref[j, 0] * x0 + ref[j, 1] * x1 + ref[j, 2] * x2 + ref[j, 3] * x3 >= 0.0 else -1.0
+            c = wref[n] * s
+            q0, q1, q2, q3 = c * ref[j, 0], c * ref[j, 1], c * ref[j, 2], c * ref[j, 3]
+            for k in range(n_slots):
+                wk = w[n, k]
+                if wk <= 0.0:
+                    continue
+                f = i0[n, k]
+                r0, r1, r2, r3 = rot_db[f, j, 0], rot_db[f, j, 1], rot_db[f, j, 2], rot_db[f, j, 3]
+                s = 1.0 if r0 * x0 + r1 * x1 + r2 * x2 + r3 * x3 >= 0.0 else -1.0
+                c1 = wk * a[n, k] * s
+                c0 = wk * s - c1
+                q0 += c0 * r0 + c1 * rot_db[f + 1, j, 0]
+                q1 += c0 * r1 + c1 * rot_db[f + 1, j, 1]
+                q2 += c0 * r2 + c1 * rot_db[f + 1, j, 2]
+                q3 += c0 * r3 + c1 * rot_db[f + 1, j, 3]
+            nrm = max(np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3), 1e-12)
+            out[n, j, 0] = q0 / nrm
+            out[n, j, 1] = q1 / nrm
+            out[n, j, 2] = q2 / nrm
+            out[n, j, 3] = q3 / nrm
+
+
+def blend_frames_fast(rot_db, i0, a, w, ref, wref) -> np.ndarray:
+    """Compiled :func:`blend_frames` (same result); one pass per character, no temporaries."""
+    out = np.empty((w.shape[0], ref.shape[0], 4))
+    _blend_kernel(rot_db, np.ascontiguousarray(i0, dtype=np.int64), np.ascontiguousarray(a, dtype=np.float64),
+                  np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(ref, dtype=np.float64),
+                  np.ascontiguousarray(wref, dtype=np.float64), out)
+    return out
+
+
+# ----------------------------------------------------------------------------------------- library
+
+
+class ClipLibrary:
+    """Clips packed for batched sampling, each with its support-phase sequence.
+
+    Every clip is stored in its *facing frame*: root rotation without heading, root height, and the
+    ground transform ``(x, y, unwrapped heading)`` of every frame. Clips of the same topology but other
+    bone lengths are retargeted to the library's skeleton.
+
+    Args:
+        skeleton: the skeleton every clip is played on.
+        contact_config: :class:`kinodyn.contacts.ContactConfig` used to build sequences.
+        phase_config: :class:`~kinodyn.blend.phases.PhaseConfig`.
+    """
+
+    def __init__(self, skeleton: Skeleton, contact_config=None, phase_config: PhaseConfig = PhaseConfig()):
+        if not isinstance(skeleton, Skeleton):
+            raise ParameterError(f"skeleton must be a Skeleton, got {type(skeleton).__name__}")
+        self.skeleton = skeleton
+        self.contact_config = contact_config
+        self.phase_config = phase_config
+        self._names: list[str] = []
+        self._seqs: list[PhaseSequence] = []
+        self._motions: list[Motion] = []
+        self._parts: list[dict] = []
+        self._packed = None
+
+    # ------------------------------------------------------------------ building
+    def add(self, name: str, motion: Motion, cyclic: bool = False, sequence: PhaseSequence | None = None,
+            feet=None) -> int:
+        """Add a clip; returns its index.
+
+        Args:
+            name: unique name.
+            motion: the clip (any fps; same joint names and parents as the library's skeleton).
+            cyclic: the clip loops (its last frame equals its first up to the root's floor position).
+            sequence: its support-phase sequence; detected from foot contacts when ``None``.
+            feet: foot joints for contact detection (see :func:`kinodyn.contacts.find_feet`).
+        """
+        if name in self._names:
+            raise ParameterError(f"a clip named {name!r} is already in the library")
+        if not isinstance(motion, Motion):
+            raise ParameterError(f"motion must be a Motion, got {type(motion).__name__}")
+        if not motion.skeleton.same_topology(self.skeleton):
+            raise MotionError(f"clip {name!r} does not fit the library's skeleton (joint names or parents differ)")
+        if motion.num_frames < 2:
+            raise MotionError(f"clip {name!r} needs at least 2 frames, got {motion.num_frames}")
+        if not np.allclose(motion.skeleton.offsets, self.skeleton.offsets, atol=1e-6):
+            motion = motion.retargeted(self.skeleton)
+        if sequence is None:
+            sequence = _phases.from_motion(motion, cyclic, self.contact_config, self.phase_config, feet)
+        elif sequence.cyclic != bool(cyclic):
+            raise ParameterError(f"clip {name!r}: sequence.cyclic={sequence.cyclic} but cyclic={cyclic}")
+        lr = quat.unroll(motion.local_rot)
+        g = motion.ground()
+        g[:, 2] = np.unwrap(g[:, 2])
+        lr = np.array(lr)
+        lr[:, 0] = quat.inv_mul(quat.from_heading(g[:, 2]), lr[:, 0])
+        lr = quat.unroll(lr)
+        # one loop of a cyclic clip moves the whole clip by `loop` (world frame, applied on the left):
+        # the frame at time u of cycle c is compose(loop^c, ground(u))
+        loop = xform.compose(g[-1], xform.inverse(g[0])) if cyclic else np.zeros(3)
+        self._names.append(name)
+        self._seqs.append(sequence)
+        self._motions.append(motion)
+        frame_phase = sequence.phase_at(motion.times()).astype(np.int8)
+        self._parts.append(dict(rot=lr, z=np.array(motion.root_pos[:, 2]), ground=g, fps=motion.fps,
+                                cyclic=bool(cyclic), loop=loop, phase=frame_phase))
+        self._packed = None
+        return len(self._names) - 1
+
+    def _pack(self):
+        if self._packed is None:
+            if not self._parts:
+                raise ParameterError("the clip library is empty")
+            n = np.array([len(p["z"]) for p in self._parts])
+            start = np.concatenate([[0], np.cumsum(n)[:-1]])
+            fps = np.array([p["fps"] for p in self._parts])
+            cyc = np.array([p["cyclic"] for p in self._parts])
+            self._packed = dict(
+                rot=np.ascontiguousarray(np.concatenate([p["rot"] for p in self._parts])),
+                z=np.concatenate([p["z"] for p in self._parts]),
+                ground=np.concatenate([p["ground"] for p in self._parts]),
+                phase=np.concatenate([p["phase"] for p in self._parts]),
+                start=start, nframes=n, fps=fps, cyclic=cyc, dur=(n - 1) / fps,
+                loop=np.stack([p["loop"] for p in self._parts]))
+        return self._packed
+
+    # ------------------------------------------------------------------ queries
+    def __len__(self) -> int:
+        return len(self._names)
+
+    @property
+    def names(self) -> list[str]:
+        return list(self._names)
+
+    def index(self, name) -> int:
+        if isinstance(name, (int, np.integer)):
+            if not 0 <= int(name) < len(self._names):
+                raise UnknownNameError(f"clip index {name} out of range (library has {len(self._names)} clips)")
+            return int(name)
+        try:
+            return self._names.index(name)
+        except ValueError:
+            raise UnknownNameError(f"unknown clip {name!r}; the library has: {', '.join(self._names)}") from None
+
+    def sequence(self, name) -> PhaseSequence:
+        return self._seqs[self.index(name)]
+
+    def motion(self, name) -> Motion:
+        return self._motions[self.index(name)]
+
+    def cyclic(self, name) -> bool:
+        return self._parts[self.index(name)]["cyclic"]
+
+    def duration(self, name) -> float:
+        return self._motions[self.index(name)].duration
+
+    @classmethod
+    def builtin(cls, names=None, contact_config=None, phase_config: PhaseConfig = PhaseConfig()) -> ClipLibrary:
+        """The built-in clips of :mod:`kinodyn.data.library` (all of them, or ``names``)."""
+        from kinodyn.data import library as data_lib
+        from kinodyn.data.skeleton import humanoid
+
+        lib = cls(humanoid(), contact_config, phase_config)
+        for n in (data_lib.names() if names is None else names):
+            lib.add(n, data_lib.load(n), data_lib.info(n).cyclic)
+        return lib
+
+    # ------------------------------------------------------------------ sampling
+    def sample(self, clip, tau, prev_tau=None):
+        """Batched sampling of clips at clip times.
+
+        Args:
+            clip: ``(...)`` clip indices.
+            tau: ``(...)`` clip times in seconds (cyclic clips wrap, others clamp).
+            prev_tau: ``(...)`` clip times one frame earlier, for the root motion (optional).
+
+        Returns:
+            ``rot (..., J, 4)`` facing-frame local rotations, ``z (...)`` root heights, and when
+            ``prev_tau`` is given the root motion ``delta (..., 3)`` (dx, dy, dheading) from
+            ``prev_tau`` to ``tau`` in the facing frame at ``prev_tau`` (the support phase at ``tau``
+            of each sample is then left in ``last_phase``).
+        """
+        P = self._pack()
+        clip = np.asarray(clip, dtype=np.int64)
+        tau = np.asarray(tau, dtype=np.float64)
+        i0, a, cyc, g = self._locate(P, clip, tau)
+        a4 = a[..., None, None]
+        rot = P["rot"][i0] * (1.0 - a4) + P["rot"][i0 + 1] * a4
+        z = P["z"][i0] * (1.0 - a) + P["z"][i0 + 1] * a
+        if prev_tau is None:
+            return rot, z
+        self.last_phase = P["phase"][np.where(a < 0.5, i0, i0 + 1)]
+        _, _, cyc0, g0 = self._locate(P, clip, np.asarray(prev_tau, dtype=np.float64))
+        dc = np.maximum(cyc - cyc0, 0)
+        if np.any(dc > 0):
+            loop = P["loop"][clip]
+            for _ in range(int(dc.max())):
+                m = dc > 0
+                g = np.where(m[..., None], xform.compose(loop, g), g)
+                dc = dc - 1
+        delta = xform.relative(g0, g)
+        return rot, z, delta
+
+    @staticmethod
+    def _locate(P, clip, tau):
+        fps = P["fps"][clip]
+        n = P["nframes"][clip]
+        dur = P["dur"][clip]
+        cyclic = P["cyclic"][clip]
+        cyc = np.where(cyclic, np.floor(tau / dur), 0.0)
+        u = np.where(cyclic, tau - cyc * dur, np.clip(tau, 0.0, dur))
+        x = u * fps
+        i = np.clip(np.floor(x), 0, n - 2).astype(np.int64)
+        a = np.clip(x - i, 0.0, 1.0)
+        i0 = P["start"][clip] + i
+        gr = P["ground"]
+        g = gr[i0] * (1.0 - a[..., None]) + gr[i0 + 1] * a[..., None]
+        return i0, a, cyc.astype(np.int64), g
+
+
+# ----------------------------------------------------------------------------------------- actions
+
+
+@dataclass(eq=False)
+class ActionState:
+    """One action of one character (mutable bookkeeping; the mixer owns it).
+
+    Attributes:
+        key: identifier (unique per character).
+        clip: library index.
+        seq: the adapted support-phase sequence (time-scaled by ``speed``).
+        speed: time scaling; clip time = action time * speed.
+        priority: higher wins.
+        ramp_in, ramp_out: activation and deactivation durations (s).
+        requested: time the start was asked for.
+        t_on: time it actually started (``None`` while waiting for synchronization).
+        t_off: time it was stopped (``None``: playing).
+        auto_stop: a non-cyclic action stops by itself so that it has faded out when its clip ends.
+        h0: action time at the start (the first element's beginning).
+    """
+
+    key: object
+    clip: int
+    seq: PhaseSequence
+    speed: float
+    priority: float
+    ramp_in: float
+    ramp_out: float
+    requested: float
+    t_on: float | None = None
+    t_off: float | None = None
+    auto_stop: bool = False
+    h0: float = 0.0
+    end_h: float = math.inf
+    order: int = 0
+
+    def weight_params(self):
+        return (math.inf if self.t_on is None else self.t_on, self.ramp_in,
+                math.inf if self.t_off is None else self.t_off, self.ramp_out)
+
+    def gone(self, t: float) -> bool:
+        return self.t_off is not None and t >= self.t_off + self.ramp_out
+
+
+@dataclass
+class Recording:
+    """Per-frame record of one character: times, each action's action time and weight (NaN when absent)."""
+
+    times: list = field(default_factory=list)
+    action_time: dict = field(default_factory=dict)
+    weight: dict = field(default_factory=dict)
+    neutral: list = field(default_factory=list)
+
+    def arrays(self) -> dict:
+        n = len(self.times)
+        out = {"t": np.array(self.times), "neutral": np.array(self.neutral)}
+        for k in self.action_time:
+            h = np.full(n, np.nan)
+            w = np.zeros(n)
+            for i, v in self.action_time[k].items():
+                h[i] = v
+            for i, v in self.weight[k].items():
+                w[i] = v
+            out[k] = (h, w)
+        return out
+
+
+class _Character:
+    """Python-side state of one character: its actions, synchronizer and warp planner."""
+
+    def __init__(self, mixer: Mixer, index: int):
+        self.mixer = mixer
+        self.index = index
+        cfg = mixer.config
+        self.actions: dict[object, ActionState] = {}
+        self.order: list[object] = []           # slot order: priority desc, then start order
+        self.sync = Synchronizer(cfg.sync, log=mixer.keep_log) if cfg.synchronize else None
+        self.planner = (WarpPlanner(self.sync, self.weights_at, cfg.warp, keep_history=mixer.keep_log)
+                        if cfg.synchronize else None)
+        self.counter = 0
+        self.weights_valid_until = math.inf
+        self._wcache = None
+        self.history: dict[object, ActionState] = {}   # every action ever started (for analysis)
+
+    # ------------------------------------------------------------------ weights (scalar, for planning)
+    def weights_at(self, t: float) -> dict:
+        """Leg weights ``P_i`` of equation 6 at time ``t``: the share of the legs each action would have
+        by its priority if it were fully active, given the others' activations at ``t``.
+
+        Higher priority levels take their (capped) summed activation first; within its level an action
+        counts itself as fully active. So actions of one priority share equally, an action overridden
+        by a fully active higher level does not set the tempo, and a new action of higher priority
+        imposes its timing from its first step (weighting by its ramped blend weight instead would
+        squeeze its first elements into the running action's timing while it fades in). Pure Python:
+        it runs once per planned step.
+        """
+        state = tuple((a.t_on, a.t_off) for a in self.actions.values())
+        c = self._wcache
+        if c is not None and c[0] == state and (c[1] <= t < c[2] or t == c[1]):
+            self.weights_valid_until = c[2]
+            return c[3]
+        out = self._weights(t)
+        self._wcache = (state, t, self.weights_valid_until, out)
+        return out
+
+    def _weights(self, t: float) -> dict:
+        acts = [a for a in self.actions.values() if a.t_on is not None and a.t_on <= t + 1e-9 and not a.gone(t)]
+        # the weights stay the same until the next ramp event (a start, the end of a ramp, a stop)
+        until = math.inf
+        for a in self.actions.values():
+            on, ri, off, ro = a.weight_params()
+            if on < t < on + ri or off < t < off + ro:  # mid-ramp: the weights change continuously
+                until = t
+                break
+            for e in (on, on + ri, off, off + ro):
+                if t + 1e-9 < e < until:
+                    until = e
+        self.weights_valid_until = until
+        if not acts:
+            return {}
+        if len(acts) == 1:
+            return {acts[0].key: 1.0}
+        level: dict[float, float] = {}
+        act = {}
+        for a in acts:
+            on, ri, off, ro = a.weight_params()
+            x = 1.0 if ri <= 0 else min(max((t - on) / ri, 0.0), 1.0)
+            up = x * x * (3.0 - 2.0 * x)
+            y = 0.0 if off == math.inf else (1.0 if ro <= 0 else min(max((t - off) / ro, 0.0), 1.0))
+            act[a.key] = up * (1.0 - y * y * (3.0 - 2.0 * y))
+            level[a.priority] = level.get(a.priority, 0.0) + act[a.key]
+        out = {}
+        for a in acts:
+            free = 1.0
+            for p, s in level.items():
+                if p > a.priority:
+                    free *= max(0.0, 1.0 - min(1.0, s))
+            out[a.key] = free / (1.0 + level[a.priority] - act[a.key])
+        return out
+
+    # ------------------------------------------------------------------ commands
+    def start(self, key, clip: int, speed: float, priority: float, ramp_in: float, ramp_out: float,
+              auto_stop: bool, now: float):
+        lib = self.mixer.library
+        if key in self.actions:
+            raise ParameterError(f"character {self.index} already has an action {key!r}")
+        if len(self.actions) >= self.mixer.config.max_actions:
+            raise ParameterError(f"character {self.index} already plays {len(self.actions)} actions "
+                                 f"(max_actions={self.mixer.config.max_actions}); stop one first")
+        seq = lib._seqs[clip].time_scaled(speed)
+        cyclic = lib._parts[clip]["cyclic"]
+        a = ActionState(key, clip, seq, speed, priority, ramp_in, ramp_out, now, auto_stop=auto_stop and not cyclic,
+                        h0=seq.element(0)[1], end_h=(lib._motions[clip].duration / speed) if not cyclic else math.inf)
+        a.order = self.counter
+        self.counter += 1
+        self.actions[key] = a
+        self.history[key] = a
+        if self.sync is None:
+            a.t_on = now
+            if a.auto_stop:
+                a.t_off = max(now, now + (a.end_h - a.h0) - a.ramp_out)
+        else:
+            was_idle = self.sync.idle and not self.sync.pending
+            self.sync.request(key, seq, priority)
+            if was_idle:
+                a.t_on = now
+                self.planner.start(now)
+                self._auto_stops(now)
+        self._layout()
+
+    def stop(self, key, now: float):
+        a = self.actions.get(key)
+        if a is None:
+            raise UnknownNameError(f"character {self.index} has no action {key!r}; it has: "
+                                   f"{', '.join(map(str, self.actions)) or 'none'}")
+        if a.t_on is None:  # still waiting for synchronization: never started
+            self.sync.cancel(key)
+            del self.actions[key]
+            self._layout()
+            return
+        if a.t_off is None or a.t_off > now:
+            a.t_off = now
+            if self.planner is not None:
+                self.planner.replan()
+            self._write_segments()
+
+    # ------------------------------------------------------------------ time
+    def next_event(self) -> float:
+        if self.sync is None:
+            ends = [a.t_off + a.ramp_out for a in self.actions.values() if a.t_off is not None]
+            return min(ends) if ends else math.inf
+        if self.sync.idle:
+            return math.inf
+        return self.planner.T.get(self.sync.current + 1, math.inf)
+
+    def advance(self, t: float):
+        """Enter every step that begins at or before ``t``."""
+        if self.sync is None:
+            for k in [k for k, a in self.actions.items() if a.gone(t)]:
+                del self.actions[k]
+            self._layout()
+            return
+        guard = 0
+        changed = False
+        while not self.sync.idle and self.planner.T.get(self.sync.current + 1, math.inf) <= t:
+            guard += 1
+            if guard > 10_000:
+                raise ParameterError("time warp produced degenerate steps")
+            tk = self.planner.T[self.sync.current + 1]
+            for key, a in list(self.actions.items()):
+                if a.t_on is not None and a.gone(tk):
+                    self.sync.remove(key, self.sync.current + 1)
+            self.sync.enter_next()
+            k = self.sync.current
+            if len(self.sync.tracks) + len(self.sync.pending) != len(self.actions):
+                live = {tr.key for tr in self.sync.tracks}
+                for key in [key for key, a in self.actions.items() if a.t_on is not None and key not in live]:
+                    del self.actions[key]
+                    changed = True
+            if self.sync.idle:
+                break
+            for tr in self.sync.tracks:
+                a = self.actions[tr.key]
+                if a.t_on is None and tr.first == k:
+                    a.t_on = tk
+                    changed = True
+            self.planner.enter()
+            changed |= self._auto_stops(tk)
+        if changed or self.sync.idle:
+            self._layout()
+        else:
+            self._write_steps()
+
+    def _auto_stops(self, now: float) -> bool:
+        changed = False
+        for a in self.actions.values():
+            if a.auto_stop and a.t_off is None and a.t_on is not None:
+                te = self.planner.time_of(a.key, a.end_h)
+                if te is not None:
+                    a.t_off = max(now, te - a.ramp_out)
+                    self.planner.replan()
+                    changed = True
+        return changed
+
+    # ------------------------------------------------------------------ slot arrays
+    def _layout(self):
+        self.order = sorted(self.actions, key=lambda k: (-self.actions[k].priority, self.actions[k].order))
+        self._write_segments()
+
+    def _write_steps(self):
+        """After a step entry with the same actions: only the warp segments and the next boundary change."""
+        m = self.mixer
+        n = self.index
+        planner = self.planner
+        k = self.sync.current
+        for s, key in enumerate(self.order):
+            tm = planner.timing.get(key)
+            seg = None if tm is None else tm.current
+            if seg is not None and seg.t1 > seg.t0 and m._ramp[n, s, 0] != math.inf and seg.t0 == planner.T.get(k):
+                m._seg[n, s] = (seg.t0, seg.t1) + seg.coef
+            else:
+                self._write_segments()
+                return
+        m._next[n] = self.next_event()
+
+    def _write_segments(self):
+        m = self.mixer
+        n = self.index
+        S = m.slots
+        k = None if self.sync is None else self.sync.current
+        prev = {m._key[n][s]: (m._prev_tau[n, s], m._prev_g[n, s].copy(), m._prev_cyc[n, s], m._fresh[n, s])
+                for s in range(S) if m._key[n][s] is not None}
+        m._count[n] = len(self.order)
+        for s in range(S):
+            if s < len(self.order):
+                a = self.actions[self.order[s]]
+                m._clip[n, s] = a.clip
+                m._speed[n, s] = a.speed
+                m._prio[n, s] = a.priority
+                on, ri, off, ro = a.weight_params()
+                if self.sync is None:
+                    m._seg[n, s] = (a.t_on, math.inf, a.h0, 1.0, 0.0, 0.0)
+                else:
+                    tr = next((x for x in self.sync.tracks if x.key == a.key), None)
+                    if tr is None or tr.elem(k) is None:
+                        on = math.inf  # waiting: no weight
+                        m._seg[n, s] = (0.0, math.inf, a.h0, 0.0, 0.0, 0.0)
+                    else:
+                        seg = self.planner.segment(a.key)
+                        m._seg[n, s] = (seg.t0, seg.t1) + seg.coef
+                m._ramp[n, s] = (on, ri, off, ro)
+                if m._key[n][s] != a.key:
+                    m._key[n][s] = a.key
+                    if a.key in prev:
+                        m._prev_tau[n, s], m._prev_g[n, s], m._prev_cyc[n, s], m._fresh[n, s] = prev[a.key]
+                    else:
+                        m._fresh[n, s] = True
+            else:
+                m._ramp[n, s] = (math.inf, 0.0, math.inf, 0.0)
+                m._seg[n, s] = (0.0, math.inf, 0.0, 0.0, 0.0, 0.0)
+                m._key[n][s] = None
+        m._next[n] = self.next_event()
+
+
+class Mixer:
+    """Mixes actions for ``N`` characters, one frame at a time (mutable real-time state).
+
+    Args:
+        library: the :class:`ClipLibrary` the actions play from.
+        n_characters: number of characters mixed together.
+        config: :class:`BlendConfig`.
+        neutral: the neutral double-support pose: a clip name (its first frame), a
+            :class:`~kinodyn.motion.Motion` (first frame), or ``None`` for the ``idle`` clip when the
+            library has one, else the first double-support frame of the first clip.
+        record: keep a per-frame :class:`Recording` of every character (for plots and checks).
+
+    Example::
+
+        mixer = Mixer(library)
+        mixer.start("walk", priority=1)
+        for _ in range(120):
+            pose = mixer.step(1 / 60)
+    """
+
+    def __init__(self, library: ClipLibrary, n_characters: int = 1, config: BlendConfig = BlendConfig(),
+                 neutral=None, record: bool = False, keep_log: bool | None = None):
+        if not isinstance(library, ClipLibrary):
+            raise ParameterError(f"library must be a ClipLibrary, got {type(library).__name__}")
+        if not isinstance(n_characters, (int, np.integer)) or n_characters < 1:
+            raise ParameterError(f"n_characters must be a positive integer, got {n_characters!r}")
+        self.library = library
+        self.config = config
+        self.n = int(n_characters)
+        self.slots = config.max_actions
+        self.keep_log = record if keep_log is None else keep_log
+        self.time = 0.0
+        N, S = self.n, self.slots
+        self._clip = np.zeros((N, S), dtype=np.int64)
+        self._speed = np.ones((N, S))
+        self._prio = np.zeros((N, S))
+        self._ramp = np.tile(np.array([math.inf, 0.0, math.inf, 0.0]), (N, S, 1))
+        self._seg = np.tile(np.array([0.0, math.inf, 0.0, 0.0, 0.0, 0.0]), (N, S, 1))
+        self._prev_tau = np.zeros((N, S))
+        self._prev_g = np.zeros((N, S, 3))
+        self._prev_cyc = np.zeros((N, S), dtype=np.int64)
+        self._count = np.zeros(N, dtype=np.int64)       # occupied slots per character
+        self._fresh = np.ones((N, S), dtype=bool)
+        self._key = [[None] * S for _ in range(N)]
+        self._next = np.full(N, math.inf)
+        self.ground = np.zeros((N, 3))
+        self.support = np.zeros(N, dtype=np.int64)       # primary planted foot: 0 none, 1 left, 2 right, 3 both
+        self._planted = np.zeros((N, 2), dtype=bool)     # left, right planted at the previous frame
+        self._foot_pt = np.full((N, 2), -1, dtype=np.int64)
+        self._foot_xy = np.zeros((N, 2, 2))              # where each planted foot's lowest point is held
+        self._release = np.zeros((N, 2, 2))              # IK offset fading out after a foot lifts off
+        from kinodyn.blend.footlock import legs
+
+        self._legs = legs(library.skeleton)
+        if self._legs is not None:  # hip-to-ankle length of each leg (the rest bone lengths)
+            bl = library.skeleton.bone_lengths()
+            self._reach = [float(bl[leg.knee] + bl[leg.ankle]) for leg in self._legs]
+        self._neutral = self._neutral_pose(neutral)
+        self.chars = [_Character(self, i) for i in range(N)]
+        self.recordings = [Recording() for _ in range(N)] if record else None
+        self._frame = 0
+
+    # ------------------------------------------------------------------ setup
+    def _neutral_pose(self, neutral):
+        lib = self.library
+        if neutral is None:
+            if "idle" in lib.names:
+                neutral = "idle"
+            else:
+                name = lib.names[0]
+                seq = lib.sequence(name)
+                ds = [i for i, p in enumerate(seq.phases) if p == _phases.DS]
+                t = 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
+                rot, z = lib.sample(np.array([lib.index(name)]), np.array([t]))
+                return rot[0], float(z[0])
+        if isinstance(neutral, Motion):
+            tmp = ClipLibrary(lib.skeleton)
+            tmp.add("neutral", neutral[:2] if neutral.num_frames >= 2 else neutral)
+            rot, z = tmp.sample(np.array([0]), np.array([0.0]))
+            return rot[0], float(z[0])
+        rot, z = lib.sample(np.array([lib.index(neutral)]), np.array([0.0]))
+        return rot[0], float(z[0])
+
+    def _constrain(self, root, q, w, wn, phase, dt: float):
+        """Enforce the support (:mod:`kinodyn.blend.footlock`); returns new ``root (N, 3)``, ``q (N, J, 4)``."""
+        from kinodyn.blend.footlock import pin_feet_fast
+        from kinodyn.kinematics import fk_arrays
+
+        down_l = (phase == _phases.LS) | (phase == _phases.DS)
+        down_r = (phase == _phases.RS) | (phase == _phases.DS)
+        sl = (w * down_l).sum(axis=1)
+        sr = (w * down_r).sum(axis=1)
+        planted = np.stack([sl + wn >= 0.5, sr + wn >= 0.5], axis=1)
+        prev = self.support
+        tie = np.abs(sl - sr) < 1e-6
+        keep = np.where(((prev == 1) & planted[:, 0]) | ((prev == 2) & planted[:, 1]), prev, 3)
+        both = np.where(tie, keep, np.where(sl > sr, 1, 2))
+        mode = np.where(planted[:, 0] & planted[:, 1], both, np.where(planted[:, 0], 1, np.where(planted[:, 1], 2, 0)))
+        self.support = mode
+        if not np.any(planted) and not np.any(self._planted) and not np.any(self._release):
+            return root, q
+        sk = self.library.skeleton
+        gr, gp = fk_arrays(root, q, sk.offsets, sk.parents)
+        xy = np.zeros((len(root), 2, 2))
+        idx = np.zeros((len(root), 2), dtype=np.int64)
+        rows = np.arange(len(root))
+        for s, leg in enumerate(self._legs):
+            pts = [gp[:, leg.joints]]
+            if len(leg.ends):
+                par = sk.end_parents[leg.ends]
+                pts.append(gp[:, par] + _rotate(gr[:, par], sk.end_offsets[leg.ends]))
+            p = np.concatenate(pts, axis=1)
+            low = np.argmin(p[..., 2], axis=1)
+            # hysteresis: the point held so far stays held while it is within 1 cm of the lowest
+            old = self._foot_pt[:, s]
+            oldz = p[rows, np.maximum(old, 0), 2]
+            idx[:, s] = np.where((old >= 0) & (oldz - p[rows, low, 2] < 0.01), old, low)
+            xy[:, s] = p[rows, idx[:, s], :2]
+            # another point of a held foot takes over (heel to toe): it is held where the foot is held,
+            # i.e. with the same offset from the blended pose as the point it replaces
+            switch = self._planted[:, s] & planted[:, s] & (old >= 0) & (idx[:, s] != old)
+            if np.any(switch):
+                self._foot_xy[switch, s] = xy[switch, s] + self._foot_xy[switch, s] - p[rows, old, :2][switch]
+        # the primary planted foot (or both) pulls the root toward where it is held
+        rebase = planted & ~self._planted
+        prim = rebase & ((mode[:, None] == np.array([1, 2])) | (mode[:, None] == 3))
+        self._foot_xy = np.where(prim[..., None], xy, self._foot_xy)
+        err = self._foot_xy - xy
+        target = np.where((mode == 1)[:, None], err[:, 0], np.where((mode == 2)[:, None], err[:, 1],
+                          np.where((mode == 3)[:, None], 0.5 * (err[:, 0] + err[:, 1]), 0.0)))
+        hl = self.config.root_halflife
+        alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
+        decay = 0.5 ** (dt / self.config.release_halflife) if self.config.release_halflife > 0 else 0.0
+        shift = alpha * target
+        root = root.copy()
+        root[:, :2] += shift
+        xy = xy + shift[:, None, :]
+        gp = gp.copy()
+        gp[..., :2] += shift[:, None, :]
+        # secondary feet planted now are held where they are after the root moved
+        self._foot_xy = np.where((rebase & ~prim)[..., None], xy, self._foot_xy)
+        # a foot that lifts off keeps the IK offset it had and lets it go smoothly (no pop)
+        released = self._planted & ~planted
+        self._release = np.where(released[..., None], self._foot_xy - xy, self._release * decay)
+        self._release = np.where(planted[..., None], 0.0, self._release)
+        # a planted foot never strays more than max_foot_offset from where the blend puts it: beyond
+        # that the blend has moved on to another stance and the foot slides along (bounded leg stretch)
+        off = self._foot_xy - xy
+        dist = np.linalg.norm(off, axis=-1)
+        lim = self.config.max_foot_offset
+        scale = np.where(planted & (dist > lim), lim / np.maximum(dist, 1e-12), 1.0)
+        # ... and never further than the leg reaches: the ankle moves by `off` horizontally, so keep
+        # the largest fraction of it that leaves the ankle within the leg's length of the hip (or
+        # within the blended pose's own hip-ankle distance when that is longer)
+        for s, leg in enumerate(self._legs):
+            hip = gp[:, leg.hip]
+            ank = gp[:, leg.ankle]
+            e = ank - hip
+            reach = np.maximum(self._reach[s], np.linalg.norm(e, axis=1))
+            d = np.zeros_like(ank)
+            d[:, :2] = off[:, s] * scale[:, s, None]
+            # |e + lam d|^2 = reach^2  ->  a lam^2 + 2 b lam + c = 0
+            a_ = (d * d).sum(axis=1)
+            b_ = (e * d).sum(axis=1)
+            c_ = (e * e).sum(axis=1) - reach * reach
+            disc = np.maximum(b_ * b_ - a_ * c_, 0.0)
+            lam = np.where(a_ > 1e-12, (-b_ + np.sqrt(disc)) / np.maximum(a_, 1e-12), 1.0)
+            lam = np.clip(lam, 0.0, 1.0)
+            scale[:, s] *= np.where(planted[:, s], lam, 1.0)
+        if np.any(scale < 1.0):
+            self._foot_xy = xy + off * scale[..., None]
+        self._foot_pt = np.where(planted, idx, -1)
+        self._planted = planted
+        heading = self.ground[:, 2]
+        target = np.where(planted[..., None], self._foot_xy, xy + self._release)
+        for s, leg in enumerate(self._legs):
+            need = np.linalg.norm(target[:, s] - xy[:, s], axis=-1) > 1e-6
+            r = np.nonzero(need)[0]
+            if len(r):
+                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r])
+        return root, q
+
+    # ------------------------------------------------------------------ commands
+    def start(self, clip, character: int = 0, priority: float = 0.0, ramp_in: float | None = None,
+              ramp_out: float | None = None, speed: float = 1.0, key=None, auto_stop: bool = True,
+              at: float | None = None):
+        """Start an action playing ``clip`` on ``character``; returns its key.
+
+        Args:
+            clip: library clip name or index.
+            priority: higher overrides lower.
+            ramp_in, ramp_out: activation / deactivation durations (default: the config's).
+            speed: time scaling of the clip (and of its sequence).
+            key: identifier (default: the clip name, suffixed when taken).
+            auto_stop: a non-cyclic clip fades out by itself at its end.
+            at: time of the command, within the frame being prepared (default: the mixer's time).
+        """
+        c = self._char(character)
+        idx = self.library.index(clip)
+        if not (np.isfinite(speed) and speed > 0):
+            raise ParameterError(f"speed must be a positive number, got {speed!r}")
+        if not np.isfinite(priority):
+            raise ParameterError(f"priority must be a finite number, got {priority!r}")
+        ri = self.config.ramp_in if ramp_in is None else float(ramp_in)
+        ro = self.config.ramp_out if ramp_out is None else float(ramp_out)
+        if ri < 0 or ro < 0 or not (np.isfinite(ri) and np.isfinite(ro)):
+            raise ParameterError(f"ramps must be non-negative seconds, got ramp_in={ri}, ramp_out={ro}")
+        if key is None:
+            base = self.library.names[idx]
+            key, i = base, 1
+            while key in c.actions:
+                i += 1
+                key = f"{base}#{i}"
+        c.start(key, idx, float(speed), float(priority), ri, ro, auto_stop, self._at(at))
+        return key
+
+    def stop(self, key, character: int = 0, at: float | None = None) -> None:
+        """Stop an action: it fades out over its ``ramp_out`` (a start still waiting is cancelled)."""
+        self._char(character).stop(key, self._at(at))
+
+    def _at(self, at) -> float:
+        if at is None:
+            return self.time
+        at = float(at)
+        if not np.isfinite(at) or at < self.time - 1e-9:
+            raise ParameterError(f"a command cannot be dated before the mixer's time {self.time:.6f} s, got {at}")
+        return at
+
+    def actions(self, character: int = 0) -> dict:
+        """The character's :class:`ActionState` objects by key."""
+        return dict(self._char(character).actions)
+
+    def _char(self, i) -> _Character:
+        if not isinstance(i, (int, np.integer)) or not 0 <= int(i) < self.n:
+            raise ParameterError(f"character must be an index in [0, {self.n}), got {i!r}")
+        return self.chars[int(i)]
+
+    # ------------------------------------------------------------------ per frame
+    def step(self, dt: float) -> Pose:
+        """Advance every character by ``dt`` seconds and return their poses."""
+        if not (np.isfinite(dt) and dt > 0):
+            raise ParameterError(f"dt must be a positive number of seconds, got {dt!r}")
+        t = self.time + float(dt)
+        for i in np.nonzero(self._next <= t)[0]:
+            self.chars[i].advance(t)
+        self.time = t
+        return self._evaluate(t, dt=float(dt))
+
+    def pose(self) -> Pose:
+        """The poses at the current time without advancing (no root motion)."""
+        return self._evaluate(self.time, move=False)
+
+    def _evaluate(self, t: float, move: bool = True, dt: float = 0.0) -> Pose:
+        """Poses of every character at time ``t`` (batched; see the module docstring)."""
+        P = self.library._pack()
+        S = max(int(self._count.max()), 1)
+        seg = self._seg[:, :S]
+        u = np.clip(t - seg[..., 0], 0.0, np.maximum(seg[..., 1] - seg[..., 0], 0.0))
+        h = eval_poly(seg[..., 2:6], u)
+        tau = h * self._speed[:, :S]
+        r = self._ramp[:, :S]
+        act = activation(t, r[..., 0], r[..., 1], r[..., 2], r[..., 3])
+        w, wn = priority_weights(act, self._prio[:, :S])
+        clip = self._clip[:, :S]
+        i0, a, cyc, g = ClipLibrary._locate(P, clip, tau)
+        fresh = self._fresh[:, :S]
+        g_prev = np.where(fresh[..., None], g, self._prev_g[:, :S])
+        cyc_prev = np.where(fresh, cyc, self._prev_cyc[:, :S])
+        self._prev_g[:, :S] = g
+        self._prev_cyc[:, :S] = cyc
+        self._prev_tau[:, :S] = tau
+        self._fresh[:] = False
+        phase = P["phase"][np.where(a < 0.5, i0, i0 + 1)]
+        nrot, nz = self._neutral
+        if self.config.average == "markley":
+            a4 = a[..., None, None]
+            rot = P["rot"][i0] * (1.0 - a4) + P["rot"][i0 + 1] * a4
+            q = blend_rotations(rot, w, nrot, wn, "markley")
+        else:
+            q = blend_frames_fast(P["rot"], i0, a, w, nrot, wn)
+        zdb = P["z"]
+        z = zdb[i0] * (1.0 - a) + zdb[i0 + 1] * a
+        zz = (w * z).sum(axis=1) + wn * nz
+        if move:
+            dc = np.maximum(cyc - cyc_prev, 0)
+            if np.any(dc > 0):
+                loop = P["loop"][clip]
+                for _ in range(int(dc.max())):
+                    m = dc > 0
+                    g = np.where(m[..., None], xform.compose(loop, g), g)
+                    dc = dc - 1
+            delta = xform.relative(g_prev, g)
+            d = (w[..., None] * delta).sum(axis=1)
+            self.ground = xform.compose(self.ground, d)
+        g = self.ground
+        root = np.stack([g[:, 0], g[:, 1], zz], axis=1)
+        q[:, 0] = quat.mul(quat.from_heading(g[:, 2]), q[:, 0])
+        if move and self.config.enforce and self._legs is not None:
+            root, q = self._constrain(root, q, w, wn, phase, dt)
+            self.ground = np.concatenate([root[:, :2], g[:, 2:]], axis=1)
+        if self.recordings is not None and move:
+            for n, rec in enumerate(self.recordings):
+                fi = len(rec.times)
+                rec.times.append(t)
+                rec.neutral.append(float(wn[n]))
+                for s, key in enumerate(self._key[n]):
+                    if key is None:
+                        continue
+                    rec.action_time.setdefault(key, {})[fi] = float(h[n, s]) if np.isfinite(r[n, s, 0]) else np.nan
+                    rec.weight.setdefault(key, {})[fi] = float(w[n, s])
+        self._frame += 1
+        return Pose(root, q)
+
+    # ------------------------------------------------------------------ offline
+    def sequence_of(self, key, character: int = 0) -> PhaseSequence:
+        """The adapted support-phase sequence of a playing action."""
+        return self._char(character).actions[key].seq

@@ -1,0 +1,502 @@
+"""Chronological organization of support phases: the synchronization of section 5.1 and appendix A.
+
+Ménardais, Multon, Kulpa, Arnaldi, support-phase synchronization, section 5.1. Every active action's
+sequence is referred to one global step index ``k`` (the change of variable of figure 7): at step
+``k`` action ``i`` plays element ``e_i(k)`` of its extended sequence, and ``e_i`` grows by one element
+per step, or by none when the element is *enlarged* (held for one more step). Steps up to the
+frontier ``k + nk`` are synchronized: the combination ``(+)_i S_i(e_i(s))`` is never ``ERR``. Each time
+the animation enters a new step, one more step is synchronized; when the candidate elements are
+incompatible, some actions hold their last synchronized element. Which ones is decided by priority:
+from the highest priority down, the first candidate element of type ``RS`` or ``LS`` that the previous
+step allows gives the constraint to respect, and every action whose candidate is the other single
+support holds (figure 9). Appendix A proves that holding the elements outside a maximal compatible
+set always works; the rule below falls back on it, so a solution always exists and at least one
+action advances.
+
+A new action first tries to fit its elements ``0 .. nk-1`` into the steps ``k .. k + nk - 1`` as they
+are; when one of them is incompatible, its start waits for the next step (the paper). After
+``max_start_delay`` such waits it joins the frontier like a running action whose current element is
+``DS`` (the neutral pose's phase), so the appendix guarantee covers starts too and no start waits
+forever unless it can never be satisfied by the rule (it then keeps waiting, reported in the log).
+
+The synchronizer is the one mutable object of this module (it is real-time state): it knows nothing of
+time; :mod:`kinodyn.blend.timewarp` gives steps their durations. Steps are integers; element indices
+are integers of the extended sequences (:meth:`PhaseSequence.element`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from itertools import combinations
+from typing import NamedTuple
+
+from kinodyn.blend.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, phase_name
+from kinodyn.errors import ParameterError
+
+__all__ = [
+    "Resolution",
+    "SyncConfig",
+    "SyncEvent",
+    "Synchronizer",
+    "Track",
+    "appendix_set",
+    "brute_force_holds",
+    "resolve",
+]
+
+
+@dataclass(frozen=True)
+class SyncConfig:
+    """Parameters of the synchronization.
+
+    Attributes:
+        nk: number of elements synchronized ahead of the current one (the paper's default, 5, covers
+            more than a locomotion cycle).
+        max_start_delay: steps a new action waits for a direct fit before it joins at the frontier
+            through the hold rule (which always finds a solution).
+        phase_match: a *cyclic* action may start at any element of its cycle: the one whose next
+            ``nk`` elements best match the running steps (the same single support, or double support /
+            flight against double support / flight) among those that fit. The paper starts every action
+            at its first element; with compatibility alone a run may start with its flight over a
+            walk's single support (FLIGHT absorbs), which blends a planted foot with a swinging one.
+    """
+
+    nk: int = 5
+    max_start_delay: int = 4
+    phase_match: bool = True
+
+    def __post_init__(self):
+        if not isinstance(self.nk, int) or self.nk < 1:
+            raise ParameterError(f"nk must be an integer >= 1, got {self.nk!r}")
+        if not isinstance(self.max_start_delay, int) or self.max_start_delay < 0:
+            raise ParameterError(f"max_start_delay must be an integer >= 0, got {self.max_start_delay!r}")
+
+
+class Resolution(NamedTuple):
+    """How one step was synchronized.
+
+    Attributes:
+        held: indices (into the inputs) of the actions that hold their last element.
+        phase: the combined phase of the step.
+        constraint: ``RS`` or ``LS`` when a single-support constraint was chosen, else ``None``.
+        rule: ``"free"`` (no conflict), ``"priority"`` (the highest-priority compatible constraint),
+            ``"other"`` (the other constraint), ``"appendix"`` (holding flight elements, appendix A).
+    """
+
+    held: tuple[int, ...]
+    phase: int
+    constraint: int | None
+    rule: str
+
+
+def _join(codes) -> int:
+    out = 0
+    for c in codes:
+        out |= c
+    return out
+
+
+def _result(old: Sequence[int], nxt: Sequence[int], held) -> int:
+    out = 0
+    for i, (o, n) in enumerate(zip(old, nxt)):
+        out |= o if i in held else n
+    return out
+
+
+def resolve(old: Sequence[int], nxt: Sequence[int], priorities: Sequence[float]) -> Resolution:
+    """Choose the actions that hold their last synchronized element so that the next step is not ``ERR``.
+
+    Args:
+        old: ``(n,)`` phase codes of each action's element at the last synchronized step; their
+            combination must not be ``ERR``. A starting action counts as ``DS`` (the neutral).
+        nxt: ``(n,)`` phase codes of each action's next element.
+        priorities: ``(n,)`` priorities, higher first; ties keep input order.
+
+    Returns:
+        A :class:`Resolution`. At least one action advances (is not held) whenever ``n > 0``, and the
+        step's phase is never ``ERR``.
+
+    Raises:
+        ParameterError: ``old`` already combines to ``ERR`` or the lengths differ.
+    """
+    n = len(old)
+    if len(nxt) != n or len(priorities) != n:
+        raise ParameterError(f"old, nxt and priorities must have equal lengths, got {n}, {len(nxt)}, "
+                             f"{len(priorities)}")
+    prev = _join(old)
+    if prev == ERR:
+        raise ParameterError("the last synchronized step combines to ERR; it must be synchronized first")
+    cand = _join(nxt)
+    if cand != ERR:
+        return Resolution((), cand, None, "free")
+    # ERR: nxt holds both RS and LS and no FLIGHT. The constraint comes from the highest-priority
+    # action whose next element is a single support allowed by the previous step.
+    order = sorted(range(n), key=lambda i: -priorities[i])
+    first = None
+    for i in order:
+        if nxt[i] in (RS, LS) and (nxt[i] | prev) != ERR:
+            first = nxt[i]
+            break
+    # prev is DS, RS, LS or FLIGHT, and nxt contains both RS and LS, so `first` exists.
+    tries = [(first, "priority"), (RS if first == LS else LS, "other")]
+    for c, rule in tries:
+        other = LS if c == RS else RS
+        held = tuple(i for i in range(n) if nxt[i] == other)
+        ph = _result(old, nxt, held)
+        if ph != ERR and len(held) < n:
+            return Resolution(held, ph, c, rule)
+    # Appendix A: the previous step is a flight (else the first try succeeds); holding the absorbing
+    # element(s) as well makes the step a flight, and some action with a candidate of type c advances.
+    for c in (first, RS if first == LS else LS):
+        other = LS if c == RS else RS
+        held = tuple(i for i in range(n) if nxt[i] == other or old[i] == FLIGHT)
+        ph = _result(old, nxt, held)
+        if ph != ERR and len(held) < n:
+            return Resolution(held, ph, c, "appendix")
+    # Unreachable (see appendix_set): keep the literal construction of the proof as the last resort.
+    keep = appendix_set(old, nxt)
+    held = tuple(i for i in range(n) if i not in keep)
+    return Resolution(held, _result(old, nxt, held), None, "appendix")
+
+
+def appendix_set(old: Sequence[int], nxt: Sequence[int]) -> frozenset[int]:
+    """The actions that advance in the proof of appendix A (the others hold their last element).
+
+    When the previous step is a flight, holding one absorbing (flight) element is enough: every other
+    action advances. Otherwise the set ``A`` is a maximal set of next elements compatible with the
+    previous step's combination (equation 11), built greedily; holding the others synchronizes the
+    step because held elements combine to at most the previous step's phase. ``A`` is never empty when
+    the candidates conflict: they contain ``RS`` and ``LS`` and the previous step, not ``ERR``, is
+    compatible with one of them.
+    """
+    prev = _join(old)
+    if prev == FLIGHT:
+        j = next(i for i, o in enumerate(old) if o == FLIGHT)
+        return frozenset(i for i in range(len(old)) if i != j)
+    keep = []
+    acc = prev
+    for i, c in enumerate(nxt):
+        if (acc | c) != ERR:
+            keep.append(i)
+            acc |= c
+    return frozenset(keep)
+
+
+def brute_force_holds(old: Sequence[int], nxt: Sequence[int]) -> list[tuple[int, ...]]:
+    """Every hold set that synchronizes the step with at least one action advancing (test oracle)."""
+    n = len(old)
+    out = []
+    for r in range(n):
+        for held in combinations(range(n), r):
+            if _result(old, nxt, set(held)) != ERR:
+                out.append(held)
+    return out
+
+
+# ----------------------------------------------------------------------------------------- the state
+
+
+@dataclass(eq=False)
+class Track:
+    """An action as the synchronizer sees it (mutable).
+
+    Attributes:
+        key: the caller's identifier.
+        seq: the action's (adapted) support-phase sequence.
+        priority: higher wins.
+        first: step at which ``elems[0]`` is played; ``None`` while the start is pending.
+        elems: element index at steps ``first, first + 1, ...`` up to the frontier.
+        end: first step the action no longer takes part in (``None``: not scheduled).
+        waited: steps the start has waited so far.
+        forced: the start joins at the frontier through the hold rule.
+        leaving: removal asked for; the action leaves at the first frontier step that allows it.
+    """
+
+    key: object
+    seq: PhaseSequence
+    priority: float
+    first: int | None = None
+    elems: list[int] = field(default_factory=list)
+    end: int | None = None
+    waited: int = 0
+    forced: bool = False
+    leaving: bool = False
+
+    def __post_init__(self):
+        p = self.seq.phases
+        self._n = len(p)
+        self._codes = [int(x) for x in p]
+        self._cyclic = self.seq.cyclic
+        self._bounds = [float(x) for x in self.seq.bounds]
+        self._period = self.seq.total
+        self._dlast = float(self.seq.durations[-1])
+
+    def span(self, e: int) -> tuple[float, float]:
+        """Extended-sequence times ``(t0, t1)`` of element ``e`` (fast :meth:`PhaseSequence.element`)."""
+        n = self._n
+        b = self._bounds
+        if self._cyclic:
+            c, i = divmod(e, n)
+            off = c * self._period
+            return b[i] + off, b[i + 1] + off
+        if e < n:
+            return b[e], b[e + 1]
+        t0 = b[n] + (e - n) * self._dlast
+        return t0, t0 + self._dlast
+
+    def code(self, e: int) -> int:
+        """Phase code of extended element ``e`` (-1: the virtual DS before the start)."""
+        if e < 0:
+            return DS
+        if self._cyclic:
+            return self._codes[e % self._n]
+        return self._codes[e if e < self._n else self._n - 1]
+
+    def elem(self, step: int) -> int | None:
+        """Element played at ``step``, or ``None`` when the action is not in that step."""
+        if self.first is None or step < self.first or (self.end is not None and step >= self.end):
+            return None
+        j = step - self.first
+        return self.elems[j] if j < len(self.elems) else None
+
+    @property
+    def last(self) -> int | None:
+        """Last synchronized step of this action."""
+        return None if self.first is None or not self.elems else self.first + len(self.elems) - 1
+
+
+class SyncEvent(NamedTuple):
+    """A log entry: ``kind`` in ``start``, ``wait``, ``force``, ``hold``, ``remove``, ``leaving``;
+    ``detail`` says more."""
+
+    step: int
+    kind: str
+    key: object
+    detail: str
+
+
+class Synchronizer:
+    """The real-time state of section 5.1 for one character (mutable; the caller drives it).
+
+    Usage: :meth:`request` a start (it is tried when the next step is entered, or at once when nothing
+    plays), :meth:`enter_next` whenever the animation crosses a step boundary, :meth:`remove` an
+    action that has finished fading out. :attr:`phases` maps each synchronized step to its combined
+    phase; :attr:`current` is the step being played; :attr:`frontier` the last synchronized one.
+    """
+
+    def __init__(self, config: SyncConfig = SyncConfig(), log: bool = True):
+        self.config = config
+        self.current = 0
+        self.frontier = -1
+        self.tracks: list[Track] = []
+        self.pending: list[Track] = []
+        self.phases: dict[int, int] = {}
+        self.events: list[SyncEvent] = []
+        self.resolutions: list[tuple[int, Resolution, tuple]] = []
+        self.dirty: int | None = None  # earliest step whose elements changed since the timing was planned
+        self._log = log
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def idle(self) -> bool:
+        """Nothing is planned: the next request starts at once."""
+        return not self.tracks
+
+    def active(self, step: int | None = None) -> list[Track]:
+        """Tracks taking part in ``step`` (default: the current step)."""
+        s = self.current if step is None else step
+        return [t for t in self.tracks if t.elem(s) is not None]
+
+    def phase(self, step: int) -> int:
+        return self.phases.get(step, DS)
+
+    # ------------------------------------------------------------------ commands
+    def request(self, key, seq: PhaseSequence, priority: float = 0.0) -> Track:
+        """Ask for an action to start; returns its :class:`Track` (``first`` is set once it starts)."""
+        if any(t.key == key for t in self.tracks + self.pending):
+            raise ParameterError(f"an action with key {key!r} is already known to the synchronizer")
+        t = Track(key, seq, float(priority))
+        if self.idle and not self.pending:  # nothing plays: a fresh step starts now with this action
+            self.current += 1
+            self._start_at(t, self.current, reset=True)
+            self._sync_frontier()
+        else:
+            self.pending.append(t)
+        return t
+
+    def cancel(self, key) -> bool:
+        """Drop a pending start; True when one was dropped."""
+        n = len(self.pending)
+        self.pending = [t for t in self.pending if t.key != key]
+        return len(self.pending) != n
+
+    def remove(self, key, from_step: int | None = None) -> int | None:
+        """The action stops taking part from ``from_step`` on (default: the next step; at the earliest the
+        current one, for an action whose weight is already zero). Returns the step it leaves at.
+
+        Removing an action relaxes its own constraints, but a flight element absorbs conflicts between
+        the others (FLIGHT (+) ERR = FLIGHT): the removal is put off to the first step from which every
+        synchronized step stays free of ``ERR`` without it. When there is none, the action is marked
+        *leaving*: from the frontier on its candidate element is ``DS`` (the neutral) and it leaves at
+        the first frontier step where the hold rule does not hold it (returns ``None`` then).
+        """
+        if self.cancel(key):
+            return None
+        s0 = self.current + 1 if from_step is None else max(int(from_step), self.current)
+        t = next((x for x in self.tracks if x.key == key), None)
+        if t is None:
+            raise ParameterError(f"no action with key {key!r} in the synchronizer")
+        if t.end is not None and t.end <= s0:
+            return t.end
+        others = [x for x in self.tracks if x is not t]
+        without = {step: _join(x.code(x.elem(step)) for x in others if x.elem(step) is not None)
+                   for step in range(s0, self.frontier + 1)}
+        s = s0
+        while s <= self.frontier and any(without[j] == ERR for j in range(s, self.frontier + 1)):
+            s += 1
+        if s > self.frontier:  # the frontier sync lets it go as soon as the others allow
+            t.leaving = True
+            self._note(s, "leaving", key, f"a flight element hides a conflict from step {s0} on")
+            return None
+        t.end = s
+        self._mark(s)
+        del t.elems[max(0, s - t.first):]
+        for step in range(s, self.frontier + 1):
+            self.phases[step] = without[step]
+        self._note(s, "remove", key, "" if s == s0 else f"put off from step {s0} (a flight hid a conflict)")
+        return s
+
+    def enter_next(self) -> None:
+        """The animation enters step ``current + 1``: try pending starts, then synchronize one more step."""
+        self.current += 1
+        k = self.current
+        for t in [t for t in self.tracks if t.end is not None and t.end <= k]:
+            self.tracks.remove(t)
+        for s in [s for s in self.phases if s < k - 1]:
+            del self.phases[s]
+        if not self.tracks:
+            self.frontier = max(self.frontier, k - 1)
+            if self.pending:  # nothing plays: the first pending action starts at once
+                t = self.pending.pop(0)
+                t.forced = False
+                self._start_at(t, k, reset=True)
+        self._try_starts(k)
+        if self.tracks or self.pending:
+            self._sync_frontier()
+
+    # ------------------------------------------------------------------ internals
+    def _mark(self, step: int) -> None:
+        self.dirty = step if self.dirty is None else min(self.dirty, step)
+
+    def _note(self, step: int, kind: str, key, detail: str) -> None:
+        if self._log:
+            self.events.append(SyncEvent(step, kind, key, detail))
+
+    def _start_at(self, t: Track, k: int, reset: bool = False, first_elem: int = 0) -> None:
+        """Lay elements ``e0 .. e0+nk-1`` at steps ``k .. k+nk-1`` (the frontier sync adds step ``k+nk``)."""
+        nk = self.config.nk
+        t.first = k
+        t.elems = list(range(first_elem, first_elem + nk))
+        self._mark(k)
+        self.tracks.append(t)
+        if reset:
+            self.frontier = k + nk - 1
+            for j in range(nk):
+                self.phases[k + j] = t.code(first_elem + j)
+        else:
+            for j in range(nk):
+                self.phases[k + j] = self.phases.get(k + j, DS) | t.code(first_elem + j)
+        self._note(k, "start", t.key, f"after {t.waited} waits")
+
+    def _try_starts(self, k: int) -> None:
+        nk = self.config.nk
+        for t in list(self.pending):
+            if t.forced:
+                continue
+            e0 = self._best_start(t, k)
+            if e0 is not None:
+                self.pending.remove(t)
+                self._start_at(t, k, first_elem=e0)
+                # the new elements reach the frontier: extend the plan so the frontier sync below
+                # handles this action like the others
+                continue
+            t.waited += 1
+            if t.waited > self.config.max_start_delay:
+                t.forced = True
+                self._note(k, "force", t.key, "joins at the frontier through the hold rule")
+            else:
+                self._note(k, "wait", t.key, f"incompatible with steps {k}..{k + nk - 1}")
+
+    def _best_start(self, t: Track, k: int) -> int | None:
+        """First element for ``t`` starting at step ``k`` (``None``: no element fits; see phase_match)."""
+        nk = self.config.nk
+        cands = range(len(t.seq)) if (t.seq.cyclic and self.config.phase_match) else (0,)
+        best, best_score = None, -1
+        for e0 in cands:
+            score = 0
+            for j in range(nk):
+                p = self.phases.get(k + j, DS)
+                c = t.code(e0 + j)
+                if (p | c) == ERR:
+                    score = -1
+                    break
+                if p == c and c in (RS, LS):
+                    score += 2
+                elif p in (DS, FLIGHT) and c in (DS, FLIGHT):
+                    score += 1
+            if score > best_score:
+                best, best_score = e0, score
+        return best
+
+    def _sync_frontier(self) -> None:
+        f = self.frontier + 1
+        prev = f - 1
+        movers, old_e = [], []
+        for t in self.tracks:
+            if t.first is None or (t.end is not None and t.end <= f):
+                continue
+            j = prev - t.first
+            if 0 <= j < len(t.elems):
+                movers.append(t)
+                old_e.append(t.elems[j])
+        joiners = [t for t in self.pending if t.forced]
+        tracks = movers + joiners
+        if not tracks:
+            self.phases[f] = DS
+            self.frontier = f
+            return
+        old_e += [-1] * len(joiners)
+        old = [t.code(e) for t, e in zip(tracks, old_e)]
+        nxt = [DS if t.leaving else t.code(e + 1) for t, e in zip(tracks, old_e)]
+        res = resolve(old, nxt, [t.priority for t in tracks])
+        held = set(res.held)
+        for i, t in enumerate(movers):
+            if t.leaving and i not in held:
+                t.end = f
+                self._note(f, "remove", t.key, "left at the frontier")
+                continue
+            if i in held:  # the enlarged element's whole run is re-split in time
+                j = len(t.elems) - 1
+                while j > 0 and t.elems[j - 1] == old_e[i]:
+                    j -= 1
+                self._mark(t.first + j)
+                t.elems.append(old_e[i])
+            else:
+                t.elems.append(old_e[i] + 1)
+        for j, t in enumerate(joiners):
+            if len(movers) + j in held:
+                t.waited += 1
+                continue
+            self.pending.remove(t)
+            t.first = f
+            t.elems = [0]
+            self._mark(f)
+            self.tracks.append(t)
+            self._note(f, "start", t.key, f"forced after {t.waited} waits")
+        self.phases[f] = res.phase
+        self.frontier = f
+        if res.held:
+            self.resolutions.append((f, res, tuple(t.key for t in tracks)))
+            self._note(f, "hold", tuple(tracks[i].key for i in res.held),
+                       f"{phase_name(res.constraint) if res.constraint is not None else '-'} kept ({res.rule})")

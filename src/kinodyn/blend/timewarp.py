@@ -1,0 +1,374 @@
+"""Durations of the synchronized elements and the time warp of each action (sections 5.2 and 5.3).
+
+Ménardais, Multon, Kulpa, Arnaldi, support-phase synchronization. Once the elements are organized
+(:mod:`kinodyn.blend.sync`), step ``s`` lasts ``D(s) = sum_i P_i D_i(s)`` (equation 6): the
+priority-weighted sum of what each action would spend there, with ``P_i`` the action's weight on the
+legs (its priority-resolved blend weight, normalized over the actions in the step). An element held
+over ``m`` steps spends ``1/m`` of its own duration in each. Action ``i`` then plays its element of step
+``s`` during ``[T_s, T_s + D(s))``: the time warp ``t' = H_i(t)`` maps real time to the action's time
+through the knots ``(T_s, h_i(s))``. ``H_i`` is piecewise linear and its slope (the action's speed)
+jumps at every knot, so it is replaced by a cardinal spline through the same knots (figure 10), a
+cubic Hermite curve with tangents ``(1 - c) (h_{s+1} - h_{s-1}) / (T_{s+1} - T_{s-1})`` (``c`` the
+tension; ``c = 0`` is Catmull-Rom), clipped to ``[0, 3 min(secants)]`` so the warp never runs
+backwards (Fritsch-Carlson). The spline passes through the knots, so every action is inside the
+right element at every instant, and its speed is continuous.
+
+In real time the future knots move (new actions, stops, enlarged elements): :class:`WarpPlanner`
+freezes the segment being played, and the tangent at its end, when a step is entered, so the curve
+actually played is C1 even though later knots change.
+
+Units: seconds of real time (``t``, ``T``) and of action time (``h``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from kinodyn.errors import ParameterError
+
+__all__ = [
+    "Segment",
+    "WarpConfig",
+    "WarpPlanner",
+    "cardinal_tangents",
+    "eval_poly",
+    "hermite_coefficients",
+    "piecewise_linear",
+    "smooth_warp",
+    "step_durations",
+]
+
+
+@dataclass(frozen=True)
+class WarpConfig:
+    """Time-warp parameters.
+
+    Attributes:
+        tension: cardinal-spline tension ``c`` in ``[0, 1)``; 0 is Catmull-Rom.
+        monotone: clip tangents so the warp never decreases (action time never runs backwards).
+    """
+
+    tension: float = 0.0
+    monotone: bool = True
+
+    def __post_init__(self):
+        if not (np.isfinite(self.tension) and 0.0 <= self.tension < 1.0):
+            raise ParameterError(f"tension must be in [0, 1), got {self.tension}")
+
+
+def step_durations(spans, weights) -> np.ndarray:
+    """Equation 6: ``D(s) = sum_i P_i D_i(s)`` with ``P`` normalized over the actions of each step.
+
+    Args:
+        spans: ``(S, n)`` action time each action spends in each step (NaN where absent).
+        weights: ``(S, n)`` non-negative weights (priority-resolved blend weights).
+
+    Returns:
+        ``(S,)`` step durations in seconds. A step where every present action has zero weight takes
+        the plain mean of the spans.
+    """
+    d = np.asarray(spans, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    if d.shape != w.shape or d.ndim != 2:
+        raise ParameterError(f"spans and weights must be equal (S, n) arrays, got {d.shape} and {w.shape}")
+    present = np.isfinite(d)
+    if np.any(~present.any(axis=1)):
+        raise ParameterError("every step needs at least one action")
+    w = np.where(present, np.maximum(w, 0.0), 0.0)
+    d0 = np.where(present, d, 0.0)
+    sw = w.sum(axis=1)
+    mean = d0.sum(axis=1) / present.sum(axis=1)
+    return np.where(sw > 0, (w * d0).sum(axis=1) / np.where(sw > 0, sw, 1.0), mean)
+
+
+def _limit(m, left, right):
+    """Clip tangents to ``[0, 3 min(left, right)]`` (monotone cubic Hermite)."""
+    lim = 3.0 * np.minimum(left, right)
+    return np.clip(m, 0.0, np.maximum(lim, 0.0))
+
+
+def cardinal_tangents(t, h, tension: float = 0.0, monotone: bool = True) -> np.ndarray:
+    """Tangents of the cardinal spline through knots ``(t (K,), h (K,))``; one-sided at the ends."""
+    t = np.asarray(t, dtype=np.float64)
+    h = np.asarray(h, dtype=np.float64)
+    if t.ndim != 1 or t.shape != h.shape or len(t) < 2:
+        raise ParameterError(f"knots must be equal (K,) arrays with K >= 2, got {t.shape} and {h.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise ParameterError("knot times must be strictly increasing")
+    sec = np.diff(h) / np.diff(t)
+    m = np.empty_like(t)
+    m[1:-1] = (1.0 - tension) * (h[2:] - h[:-2]) / (t[2:] - t[:-2])
+    m[0] = sec[0]
+    m[-1] = sec[-1]
+    if monotone:
+        m[1:-1] = _limit(m[1:-1], sec[:-1], sec[1:])
+        m[0] = max(sec[0], 0.0)
+        m[-1] = max(sec[-1], 0.0)
+    return m
+
+
+def hermite_coefficients(t0: float, t1: float, h0: float, h1: float, m0: float, m1: float) -> np.ndarray:
+    """``(4,)`` polynomial coefficients ``c`` of the cubic Hermite segment, ``h(u) = sum c_j u^j``,
+    ``u = t - t0`` in ``[0, t1 - t0]``."""
+    dt = t1 - t0
+    if not dt > 0:
+        raise ParameterError(f"a segment needs t1 > t0, got {t0} and {t1}")
+    dh = h1 - h0
+    c2 = (3.0 * dh / dt - 2.0 * m0 - m1) / dt
+    c3 = (m0 + m1 - 2.0 * dh / dt) / (dt * dt)
+    return np.array([h0, m0, c2, c3])
+
+
+def eval_poly(c, u) -> np.ndarray:
+    """Evaluate cubic coefficients ``c (..., 4)`` at ``u (...)`` (Horner)."""
+    c = np.asarray(c, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    return ((c[..., 3] * u + c[..., 2]) * u + c[..., 1]) * u + c[..., 0]
+
+
+def piecewise_linear(knot_t, knot_h, times) -> np.ndarray:
+    """The unsmoothed warp ``H(t)``: linear between knots ``(knot_t (K,), knot_h (K,))`` at ``times (T,)``."""
+    return np.interp(np.asarray(times, dtype=np.float64), knot_t, knot_h)
+
+
+def smooth_warp(knot_t, knot_h, times, config: WarpConfig = WarpConfig()) -> np.ndarray:
+    """The cardinal-spline warp through the knots at ``times (T,)`` (figure 10's dashed curve).
+
+    With ``tension=0`` and no tangent clipping this is :func:`kinodyn.math.interp.catmull_rom`.
+    """
+    kt = np.asarray(knot_t, dtype=np.float64)
+    kh = np.asarray(knot_h, dtype=np.float64)
+    m = cardinal_tangents(kt, kh, config.tension, config.monotone)
+    t = np.clip(np.asarray(times, dtype=np.float64), kt[0], kt[-1])
+    i = np.clip(np.searchsorted(kt, t, side="right") - 1, 0, len(kt) - 2)
+    dt = kt[i + 1] - kt[i]
+    dh = kh[i + 1] - kh[i]
+    c2 = (3.0 * dh / dt - 2.0 * m[i] - m[i + 1]) / dt
+    c3 = (m[i] + m[i + 1] - 2.0 * dh / dt) / (dt * dt)
+    u = t - kt[i]
+    return ((c3 * u + c2) * u + m[i]) * u + kh[i]
+
+
+# ----------------------------------------------------------------------------------------- planner
+
+
+class Segment(NamedTuple):
+    """The frozen piece of one action's warp being played: ``h(t) = eval_poly(coef, t - t0)`` on
+    ``[t0, t1]``."""
+
+    t0: float
+    t1: float
+    coef: tuple[float, float, float, float]
+
+
+@dataclass
+class _TrackTiming:
+    knots: dict[int, float] = field(default_factory=dict)   # step -> action time at T[step]
+    tangent: dict[int, float] = field(default_factory=dict)  # frozen tangents
+    history: list[tuple[float, float]] = field(default_factory=list)  # played knots (T, h)
+    segments: list[Segment] = field(default_factory=list)
+    current: Segment | None = None
+
+
+class WarpPlanner:
+    """Step boundaries and per-action warps of one character, driven by a
+    :class:`~kinodyn.blend.sync.Synchronizer` (mutable real-time state).
+
+    Args:
+        sync: the synchronizer whose plan is timed.
+        weights_at: ``f(t) -> {key: weight}``: the leg weights ``P_i`` of the actions at real time ``t``.
+            When it is a bound method whose object has ``weights_valid_until`` (set by the call), the
+            weights are reused for later steps that begin before that time.
+        config: :class:`WarpConfig`.
+        keep_history: record played knots and segments (for figure 10).
+    """
+
+    def __init__(self, sync, weights_at, config: WarpConfig = WarpConfig(), keep_history: bool = True):
+        self.sync = sync
+        self.weights_at = weights_at
+        self.config = config
+        self.T: dict[int, float] = {}
+        self.timing: dict[object, _TrackTiming] = {}
+        self.timing_history: dict[object, _TrackTiming] = {}  # every action's timing, kept after it ends
+        self.keep_history = keep_history
+
+    # ------------------------------------------------------------------ planning
+    @staticmethod
+    def _share(tr, step: int, frozen_from: int, knots: dict) -> float:
+        """Action time that track ``tr`` spends in ``step`` (the hold split of an enlarged element)."""
+        elems = tr.elems
+        j = step - tr.first
+        e = elems[j]
+        a = j
+        while a > 0 and elems[a - 1] == e:
+            a -= 1
+        b = j
+        n = len(elems)
+        while b + 1 < n and elems[b + 1] == e:
+            b += 1
+        t0, t1 = tr.span(e)
+        a += tr.first
+        b += tr.first
+        if a < frozen_from:
+            h = knots[frozen_from]
+            return max(t1 - h, 0.0) / (b - frozen_from + 1)
+        return (t1 - t0) / (b - a + 1)
+
+    def plan(self, from_step: int) -> None:
+        """Recompute boundaries and knots of steps ``from_step .. frontier`` (earlier ones are frozen)."""
+        sync = self.sync
+        T = self.T
+        for st in [x for x in T if x > from_step]:
+            del T[st]
+        timing = self.timing
+        for tm in timing.values():
+            kn = tm.knots
+            for st in [x for x in kn if x > from_step]:
+                del kn[st]
+        tracks = sync.tracks
+        for tr in tracks:
+            if tr.key not in timing:
+                tm = timing[tr.key] = _TrackTiming()
+                if self.keep_history:
+                    self.timing_history[tr.key] = tm
+        w_now = self.weights_at(T[from_step])
+        w_time = T[from_step]
+        until = getattr(self.weights_at, "__self__", None)
+        until = getattr(until, "weights_valid_until", -math.inf)
+        share = self._share
+        for s in range(from_step, sync.frontier + 1):
+            num = den = tot = 0.0
+            cnt = 0
+            spans = []
+            ts = T[s]
+            if ts >= until and ts != w_time:  # a ramp event lies behind (or a ramp runs): weigh again
+                w_time = ts
+                w_now = self.weights_at(ts)
+                until = getattr(getattr(self.weights_at, "__self__", None), "weights_valid_until", -math.inf)
+            for tr in tracks:
+                j = s - tr.first if tr.first is not None else -1
+                if j < 0 or j >= len(tr.elems) or (tr.end is not None and s >= tr.end):
+                    continue
+                kn = timing[tr.key].knots
+                if j == 0:  # a track starts at the beginning of its first element
+                    kn[s] = tr.span(tr.elems[0])[0]
+                sp = share(tr, s, from_step, kn)
+                spans.append((kn, sp))
+                w = w_now.get(tr.key, 0.0)
+                num += w * sp
+                den += w
+                tot += sp
+                cnt += 1
+            if not cnt:
+                T[s + 1] = ts
+                break
+            d = num / den if den > 0 else tot / cnt  # equation 6 (plain mean when no weight)
+            T[s + 1] = ts + max(d, 1e-4)
+            for kn, sp in spans:
+                kn[s + 1] = kn[s] + sp
+
+    def start(self, now: float) -> None:
+        """A fresh plan begins at real time ``now`` with the synchronizer's current step."""
+        k = self.sync.current
+        self.sync.dirty = None
+        self.T = {k: float(now)}
+        for key in list(self.timing):
+            if not any(t.key == key for t in self.sync.tracks):
+                del self.timing[key]
+        self.plan(k)
+        self.freeze(k)
+
+    def enter(self) -> None:
+        """The synchronizer has entered its current step: re-time what changed and freeze its segments.
+
+        Only steps from the earliest one the synchronizer changed (a start, an enlarged element, a
+        removal) or not yet timed (the new frontier) are planned again.
+        """
+        sync = self.sync
+        k = sync.current
+        live = {t.key for t in sync.tracks}
+        for key in [x for x in self.timing if x not in live]:
+            del self.timing[key]
+        T = self.T
+        for st in [x for x in T if x < k]:
+            del T[st]
+        for tm in self.timing.values():  # knots of played steps are in the history, not needed here
+            kn = tm.knots
+            for st in [x for x in kn if x < k]:
+                del kn[st]
+        last = max(T) - 1  # last step with a duration
+        start = last + 1 if sync.dirty is None else min(sync.dirty, last + 1)
+        start = max(start, k)
+        if start not in self.T:
+            start = k
+        sync.dirty = None
+        self.plan(start)
+        self.freeze(k)
+
+    def replan(self) -> None:
+        """Weights or actions changed mid-step: re-time the steps after the current one."""
+        k = self.sync.current
+        if k + 1 in self.T:
+            self.sync.dirty = None
+            self.plan(k + 1)
+
+    def freeze(self, k: int) -> None:
+        """Fix the Hermite segment of every action present in step ``k``."""
+        T = self.T
+        t0, t1 = T[k], T[k + 1]
+        tension, mono = self.config.tension, self.config.monotone
+        has2 = k + 2 in T
+        timing = self.timing
+        for tr in self.sync.tracks:
+            first, elems, end = tr.first, tr.elems, tr.end
+            j = k - first if first is not None else -1
+            if j < 0 or j >= len(elems) or (end is not None and k >= end):
+                continue
+            next_in = j + 1 < len(elems) and (end is None or k + 1 < end)
+            tm = timing[tr.key]
+            kn = tm.knots
+            h0, h1 = kn[k], kn[k + 1]
+            sec = (h1 - h0) / (t1 - t0)
+            # the tangent frozen at the end of the previous segment keeps the speed continuous; it is
+            # only clipped when a changed plan would make this segment run backwards (alpha <= 3).
+            m0 = tm.tangent.get(k, sec)
+            if has2 and next_in and k + 2 in kn:
+                h2, t2 = kn[k + 2], T[k + 2]
+                m1 = (1.0 - tension) * (h2 - h0) / (t2 - t0)
+                if mono:
+                    m1 = min(max(m1, 0.0), 3.0 * min(sec, (h2 - h1) / max(t2 - t1, 1e-12)))
+            else:
+                m1 = sec
+            if mono:
+                m0 = min(max(m0, 0.0), 3.0 * sec)
+                m1 = min(max(m1, 0.0), 3.0 * sec)
+            tm.tangent = {k + 1: m1}
+            dt_, dh = t1 - t0, h1 - h0
+            c2 = (3.0 * dh / dt_ - 2.0 * m0 - m1) / dt_
+            c3 = (m0 + m1 - 2.0 * dh / dt_) / (dt_ * dt_)
+            seg = Segment(t0, t1, (h0, m0, c2, c3))
+            if self.keep_history:
+                tm.history.append((t0, h0))
+                tm.segments.append(seg)
+            tm.current = seg
+
+    def segment(self, key) -> Segment:
+        return self.timing[key].current
+
+    def time_of(self, key, h: float) -> float | None:
+        """Planned real time at which action ``key`` reaches action time ``h`` (linear between knots);
+        ``None`` beyond the plan."""
+        tm = self.timing.get(key)
+        if tm is None:
+            return None
+        steps = sorted(s for s in tm.knots if s in self.T)
+        for a, b in itertools.pairwise(steps):
+            ha, hb = tm.knots[a], tm.knots[b]
+            if ha <= h <= hb and hb > ha:
+                return self.T[a] + (h - ha) / (hb - ha) * (self.T[b] - self.T[a])
+        return None

@@ -1,0 +1,242 @@
+"""The mixer: ramps, priorities, neutral pose, batched sampling and blending, support constraints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinodyn.blend import footlock
+from kinodyn.blend.mixer import (
+    BlendConfig,
+    ClipLibrary,
+    Mixer,
+    activation,
+    blend_rotations,
+    priority_weights,
+    smoothstep,
+)
+from kinodyn.errors import ParameterError, UnknownNameError
+from kinodyn.kinematics import fk_arrays
+from kinodyn.math import interp, quat
+
+_TOL = 1e-9
+_ANGLE_TOL = 1e-9
+
+
+@pytest.fixture(scope="module")
+def lib():
+    return ClipLibrary.builtin(["idle", "walk", "run", "kick", "punch"])
+
+
+def test_activation_follows_figure_2():
+    t = np.array([0.0, 1.0, 1.25, 1.5, 3.0, 3.5, 3.99, 4.0, 5.0])
+    a = activation(t, 1.0, 0.5, 3.0, 1.0)
+    assert a[0] == 0.0 and a[1] == 0.0                  # before t1
+    assert a[2] == pytest.approx(smoothstep(0.5))        # ramping up
+    assert a[3] == pytest.approx(1.0) and a[4] == pytest.approx(1.0)   # t2 .. t3
+    assert a[5] == pytest.approx(1.0 - smoothstep(0.5))  # ramping down
+    assert a[7] == 0.0 and a[8] == 0.0                   # after t4
+    assert activation(2.0, np.inf, 0.5, np.inf, 0.5) == 0.0   # not started: no weight
+
+
+def test_priority_weights():
+    # same priority: shared by activation; the neutral pose gets what is left
+    w, wn = priority_weights([[0.5, 0.25]], [[1, 1]])
+    np.testing.assert_allclose(w, [[0.5, 0.25]]) and pytest.approx(wn[0]) == 0.25
+    w, wn = priority_weights([[1.0, 1.0]], [[1, 1]])
+    np.testing.assert_allclose(w, [[0.5, 0.5]], atol=_TOL) and np.testing.assert_allclose(wn, [0.0], atol=_TOL)
+    # a higher priority takes its activation first
+    w, wn = priority_weights([[0.75, 1.0, 1.0]], [[2, 1, 0]])
+    np.testing.assert_allclose(w, [[0.75, 0.25, 0.0]], atol=_TOL)
+    assert wn[0] == pytest.approx(0.0)
+    rng = np.random.default_rng(0)
+    act = rng.random((50, 4)) * (rng.random((50, 4)) > 0.3)
+    prio = rng.integers(0, 3, (50, 4)).astype(float)
+    w, wn = priority_weights(act, prio)
+    np.testing.assert_allclose(w.sum(axis=1) + wn, 1.0, atol=1e-12)
+    assert np.all(w >= 0) and np.all(w <= act + 1e-12)
+
+
+def test_blend_rotations_nlerp_close_to_markley_oracle():
+    rng = np.random.default_rng(1)
+    base = quat.from_rotvec(rng.normal(0, 1, (6, 21, 3)))
+    q = quat.mul(base[:, None], quat.from_rotvec(rng.normal(0, 0.15, (6, 3, 21, 3))))   # nearby rotations
+    q = q * np.where(rng.random((6, 3, 21, 1)) < 0.5, -1.0, 1.0)   # random signs: q and -q are one rotation
+    w = rng.dirichlet(np.ones(4), 6)
+    ref = quat.identity((21,))
+    a = blend_rotations(q, w[:, :3], ref, w[:, 3] * 0, "nlerp")
+    b = blend_rotations(q, w[:, :3], ref, w[:, 3] * 0, "markley")
+    assert np.degrees(quat.angle_between(a, b)).max() < 0.5
+    # one rotation with all the weight is returned exactly
+    one = blend_rotations(q[:, :1], np.ones((6, 1)), ref, np.zeros(6))
+    assert quat.angle_between(one, q[:, 0]).max() < _ANGLE_TOL
+
+
+def test_single_action_plays_its_clip(lib):
+    """One action with no ramp reproduces the clip: joint rotations exactly, and the root travels as far."""
+    from kinodyn.data import library as L
+
+    run = L.load("run")
+    for sync in (True, False):
+        mx = Mixer(lib, 1, BlendConfig(synchronize=sync, ramp_in=0.0, constraints="off"), record=True)
+        mx.time = -1 / 60
+        mx.start("run")
+        rots, roots = [], []
+        for _ in range(150):
+            p = mx.step(1 / 60)
+            rots.append(p.local_rot[0])
+            roots.append(p.root_pos[0])
+        rots, roots = np.array(rots), np.array(roots)
+        h = mx.recordings[0].arrays()["run"][0]
+        ref = interp.slerp_frames(quat.unroll(run.local_rot), run.fps, np.mod(h, run.duration))
+        assert quat.angle_between(ref[:, 1:], rots[:, 1:]).max() < 1e-9
+        np.testing.assert_allclose(roots[:, 2], interp.lerp_frames(run.root_pos[:, 2], run.fps, np.mod(h, run.duration)),
+                                   atol=1e-9)
+        speed = np.linalg.norm(run.root_pos[-1, :2] - run.root_pos[0, :2]) / run.duration
+        travelled = np.linalg.norm(roots[-1, :2] - roots[0, :2])
+        assert travelled == pytest.approx(speed * (h[-1] - h[0]), rel=0.02)
+
+
+def test_nothing_playing_gives_the_neutral_pose(lib):
+    from kinodyn.data import library as L
+
+    mx = Mixer(lib, 2)
+    p = mx.step(1 / 60)
+    idle = L.load("idle")
+    for n in range(2):
+        assert quat.angle_between(p.local_rot[n, 1:], idle.local_rot[0, 1:]).max() < 1e-9
+        assert p.root_pos[n, 2] == pytest.approx(idle.root_pos[0, 2])
+
+
+def test_batched_equals_looped(lib):
+    """N characters mixed together give the same poses as N one-character mixers."""
+    cmds = [[("walk", 0.0, None), ("run", 0.7, 2.0)], [("run", 0.1, None), ("kick", 0.9, None)],
+            [("idle", 0.0, 1.0), ("walk", 0.5, None)]]
+    cfg = BlendConfig()
+
+    def play(mixers):
+        """One mixer for all characters, or one mixer per character."""
+        out = []
+        for f in range(180):
+            t = f / 60
+            for c in range(3):
+                m, ch = (mixers[0], c) if len(mixers) == 1 else (mixers[c], 0)
+                for i, (clip, t0, t1) in enumerate(cmds[c]):
+                    if abs(t - t0) < 1e-9:
+                        m.start(clip, character=ch, key=f"a{i}", priority=2 if clip == "kick" else 1)
+                    if t1 is not None and abs(t - t1) < 1e-9:
+                        m.stop(f"a{i}", character=ch)
+            out.append([m.step(1 / 60) for m in mixers])
+        return out
+
+    batched = play([Mixer(lib, 3, cfg)])
+    looped = play([Mixer(lib, 1, cfg) for _ in range(3)])
+    for fb, fl in zip(batched, looped):
+        for n in range(3):
+            np.testing.assert_allclose(fb[0].root_pos[n], fl[n].root_pos[0], atol=1e-9)
+            assert quat.angle_between(fb[0].local_rot[n], fl[n].local_rot[0]).max() < 1e-8
+
+
+def test_cyclic_clip_root_motion_is_continuous_across_the_loop(lib):
+    idx = lib.index("walk")
+    dur = lib.duration("walk")
+    t = np.array([dur - 0.02, dur - 0.01, dur, dur + 0.01, dur + 0.02])
+    _, _, delta = lib.sample(np.full(4, idx), t[1:], t[:-1])
+    for d in delta[1:]:   # about the same 1 cm step on both sides of the loop point, no jump
+        np.testing.assert_allclose(d, delta[0], atol=2e-3)
+
+
+def test_two_bone_ik_compiled_matches_numpy_and_reaches(lib):
+    from kinodyn.data import library as L
+
+    m = L.load("walk")
+    sk = m.skeleton
+    legs = footlock.legs(sk)
+    q = np.array(m.local_rot[::5])
+    root = np.array(m.root_pos[::5])
+    gr, gp = fk_arrays(root, q, sk.offsets, sk.parents)
+    rng = np.random.default_rng(4)
+    for leg in legs:
+        rows = np.arange(len(q))
+        c = gp[:, leg.ankle, :2]
+        d = rng.normal(0, 0.04, c.shape)
+        h = rng.uniform(-3, 3, len(q))
+        a = footlock.pin_feet(q, gr, gp, leg, rows, c + d, c, h)
+        b = footlock.pin_feet_fast(q.copy(), gr, gp, leg, rows, c + d, c, h)
+        assert quat.angle_between(a, b).max() < 1e-10
+        gr2, gp2 = fk_arrays(root, b, sk.offsets, sk.parents)
+        err = np.linalg.norm(gp2[:, leg.ankle, :2] - (c + d), axis=1)
+        t = gp[:, leg.ankle].copy()
+        t[:, :2] += d
+        length = (np.linalg.norm(gp[:, leg.knee] - gp[:, leg.hip], axis=1)
+                  + np.linalg.norm(gp[:, leg.ankle] - gp[:, leg.knee], axis=1))
+        reachable = np.linalg.norm(t - gp[:, leg.hip], axis=1) < 0.999 * length
+        assert reachable.sum() > 15
+        assert np.median(err[reachable]) < 1e-4 and err[reachable].max() < 2e-3   # reached within 2 mm
+        assert quat.angle_between(gr2[:, leg.ankle], gr[:, leg.ankle]).max() < 1e-9   # foot keeps its orientation
+
+
+def test_constraints_hold_a_planted_foot_through_a_blend(lib):
+    """Walk into run with synchronization: while one foot is planted by the actions it does not move."""
+    from kinodyn import contacts
+
+    mx = Mixer(lib, 1, BlendConfig(), record=True)
+    frames = []
+    for f in range(240):
+        if f == 60:
+            mx.start("walk", key="w", priority=1)
+        if f == 130:
+            mx.start("run", key="r", priority=1)
+            mx.stop("w")
+        frames.append(mx.step(1 / 60))
+        frames[-1] = (frames[-1], mx.support[0])
+    support = np.array([s for _, s in frames])
+    root = np.array([p.root_pos[0] for p, _ in frames])
+    rot = np.array([p.local_rot[0] for p, _ in frames])
+    from kinodyn.motion import Motion
+
+    m = Motion(lib.skeleton, root, rot, 60.0)
+    pts = contacts.foot_points(m)
+    for side, code in (("left", 1), ("right", 2)):
+        p = pts[side]
+        low = p[np.arange(len(p)), np.argmin(p[..., 2], axis=1), :2]
+        held = np.nonzero((support[1:] == code) & (support[:-1] == code))[0] + 1
+        steps = np.linalg.norm(low[held] - low[held - 1], axis=1)
+        assert len(held) > 20
+        assert np.median(steps) < 1e-4   # a held foot stays put (heel-to-toe changes aside)
+
+
+def test_errors_name_the_problem(lib):
+    mx = Mixer(lib, 1, BlendConfig(max_actions=2))
+    with pytest.raises(UnknownNameError, match="unknown clip 'swim'"):
+        mx.start("swim")
+    mx.start("walk")
+    mx.start("run")
+    with pytest.raises(ParameterError, match="max_actions=2"):
+        mx.start("kick")
+    with pytest.raises(ParameterError, match="speed must be"):
+        Mixer(lib).start("walk", speed=0.0)
+    with pytest.raises(ParameterError, match="character must be"):
+        mx.start("walk", character=3)
+    with pytest.raises(UnknownNameError, match="no action 'zzz'"):
+        mx.stop("zzz")
+    with pytest.raises(ParameterError, match="dt must be"):
+        mx.step(0.0)
+    with pytest.raises(ParameterError, match="constraints must be"):
+        BlendConfig(constraints="maybe")
+
+
+def test_compiled_frame_blend_matches_numpy(lib):
+    from kinodyn.blend.mixer import blend_frames, blend_frames_fast
+
+    P = lib._pack()
+    rng = np.random.default_rng(7)
+    n, s = 40, 3
+    i0 = rng.integers(0, len(P["z"]) - 1, (n, s))
+    a = rng.random((n, s))
+    act = rng.random((n, s)) * (rng.random((n, s)) > 0.3)
+    w, wn = priority_weights(act, rng.integers(0, 2, (n, s)).astype(float))
+    ref = quat.from_rotvec(rng.normal(0, 0.3, (lib.skeleton.num_joints, 3)))
+    q1 = blend_frames(P["rot"], i0, a, w, ref, wn)
+    q2 = blend_frames_fast(P["rot"], i0, a, w, ref, wn)
+    assert quat.angle_between(q1, q2).max() < 1e-12

@@ -1,0 +1,134 @@
+"""Durations of synchronized elements and time warps (sections 5.2 and 5.3)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from kinodyn.blend import timewarp as tw
+from kinodyn.blend.phases import DS, LS, RS, PhaseSequence
+from kinodyn.blend.sync import SyncConfig, Synchronizer
+from kinodyn.errors import ParameterError
+from kinodyn.math import interp
+
+_TOL = 1e-9
+
+
+def test_step_durations_are_the_weighted_sum():
+    spans = np.array([[0.3, 0.1], [0.2, np.nan]])
+    w = np.array([[3.0, 1.0], [1.0, 5.0]])
+    d = tw.step_durations(spans, w)
+    assert d[0] == pytest.approx((3 * 0.3 + 1 * 0.1) / 4)
+    assert d[1] == pytest.approx(0.2)  # an absent action has no say
+    assert tw.step_durations([[0.3, 0.1]], [[0.0, 0.0]])[0] == pytest.approx(0.2)  # no weight: mean
+    with pytest.raises(ParameterError):
+        tw.step_durations([[np.nan]], [[1.0]])
+
+
+def test_smooth_warp_is_catmull_rom_without_clipping():
+    rng = np.random.default_rng(3)
+    kt = np.cumsum(rng.uniform(0.1, 0.5, 8))
+    kh = np.cumsum(rng.uniform(0.1, 0.5, 8))
+    t = np.linspace(kt[0], kt[-1], 301)
+    got = tw.smooth_warp(kt, kh, t, tw.WarpConfig(tension=0.0, monotone=False))
+    np.testing.assert_allclose(got, interp.catmull_rom(kt, kh, t), atol=1e-12)
+    # passes through the knots
+    np.testing.assert_allclose(tw.smooth_warp(kt, kh, kt), kh, atol=_TOL)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.02, 1.0), min_size=3, max_size=10), st.lists(st.floats(0.01, 2.0), min_size=3, max_size=10),
+       st.floats(0.0, 0.9))
+def test_smooth_warp_is_monotone_and_c1(dts, dhs, tension):
+    n = min(len(dts), len(dhs))
+    kt = np.concatenate([[0.0], np.cumsum(dts[:n])])
+    kh = np.concatenate([[0.0], np.cumsum(dhs[:n])])
+    cfg = tw.WarpConfig(tension=tension)
+    t = np.linspace(0.0, kt[-1], 2001)
+    h = tw.smooth_warp(kt, kh, t, cfg)
+    assert np.all(np.diff(h) >= -1e-9)  # action time never runs backwards
+    # speed is continuous at the knots: one-sided finite differences agree
+    eps = 1e-8
+    for k in kt[1:-1]:
+        left = (tw.smooth_warp(kt, kh, [k], cfg) - tw.smooth_warp(kt, kh, [k - eps], cfg)) / eps
+        right = (tw.smooth_warp(kt, kh, [k + eps], cfg) - tw.smooth_warp(kt, kh, [k], cfg)) / eps
+        assert left[0] == pytest.approx(right[0], rel=1e-3, abs=1e-3)
+
+
+def test_piecewise_linear_warp_has_speed_jumps_the_spline_removes():
+    kt = np.array([0.0, 0.2, 0.4, 0.6])
+    kh = np.array([0.0, 0.1, 0.4, 0.5])   # slopes 0.5, 1.5, 0.5
+    eps = 1e-6
+    lin = tw.piecewise_linear(kt, kh, [0.2 - eps, 0.2, 0.2 + eps])
+    assert (lin[2] - lin[1]) / eps == pytest.approx(1.5) and (lin[1] - lin[0]) / eps == pytest.approx(0.5)
+    sm = tw.smooth_warp(kt, kh, [0.2 - eps, 0.2, 0.2 + eps])
+    assert (sm[2] - sm[1]) / eps == pytest.approx((sm[1] - sm[0]) / eps, rel=1e-3)
+
+
+def test_hermite_coefficients_match_the_endpoints():
+    c = tw.hermite_coefficients(1.0, 1.5, 2.0, 2.4, 0.7, 1.1)
+    assert tw.eval_poly(c, 0.0) == pytest.approx(2.0) and tw.eval_poly(c, 0.5) == pytest.approx(2.4)
+    d = lambda u: c[1] + 2 * c[2] * u + 3 * c[3] * u * u
+    assert d(0.0) == pytest.approx(0.7) and d(0.5) == pytest.approx(1.1)
+
+
+def _planner(weights):
+    sync = Synchronizer(SyncConfig(nk=3, phase_match=False))
+    planner = tw.WarpPlanner(sync, lambda t: weights)
+    return sync, planner
+
+
+def test_planner_times_steps_with_equation_6_and_the_hold_split():
+    sync, planner = _planner({"a": 1.0, "b": 3.0})
+    a = PhaseSequence([RS, DS, LS, DS], [0.4, 0.1, 0.4, 0.1], cyclic=True)
+    b = PhaseSequence([RS, DS, LS, DS], [0.2, 0.05, 0.2, 0.05], cyclic=True)
+    sync.request("a", a)
+    planner.start(0.0)
+    sync.request("b", b)
+    sync.enter_next()
+    planner.enter()
+    k = sync.current
+    ta = next(t for t in sync.tracks if t.key == "a")
+    tb = next(t for t in sync.tracks if t.key == "b")
+    for s in range(k, sync.frontier):
+        sa = planner.timing["a"].knots[s + 1] - planner.timing["a"].knots[s]
+        sb = planner.timing["b"].knots[s + 1] - planner.timing["b"].knots[s]
+        # each action spends its element's duration (divided among held steps) ...
+        if ta.elems.count(ta.elem(s)) == 1:
+            assert sa == pytest.approx(a.durations[ta.elem(s) % 4])
+        # ... and the step lasts the weighted mean (equation 6)
+        assert planner.T[s + 1] - planner.T[s] == pytest.approx((1 * sa + 3 * sb) / 4)
+    # the segment being played is frozen, C1 with the previous one
+    seg = planner.segment("a")
+    assert seg.t0 == pytest.approx(planner.T[k]) and seg.t1 == pytest.approx(planner.T[k + 1])
+    assert tw.eval_poly(np.array(seg.coef), seg.t1 - seg.t0) == pytest.approx(planner.timing["a"].knots[k + 1])
+    assert tb.first == k
+
+
+def test_played_warp_is_continuous_in_value_and_speed():
+    """Across a real mix (built-in walk then run), consecutive frozen segments join with equal value and
+    equal speed, except where a changed plan forced a tangent to be clipped (reported, rare)."""
+    from kinodyn.blend.demo import transition_script
+    from kinodyn.blend.script import run_script
+
+    r = run_script(transition_script())
+    timing = r.mixer.chars[0].planner.timing_history
+    jumps = total = 0
+    for key, tm in timing.items():
+        segs = tm.segments
+        for s0, s1 in itertools.pairwise(segs):
+            if abs(s0.t1 - s1.t0) > 1e-9:
+                continue
+            u = s0.t1 - s0.t0
+            c = s0.coef
+            v0 = tw.eval_poly(np.array(c), u)
+            d0 = c[1] + 2 * c[2] * u + 3 * c[3] * u * u
+            assert v0 == pytest.approx(s1.coef[0], abs=1e-9), key   # the action never jumps in time
+            total += 1
+            jumps += abs(d0 - s1.coef[1]) > 1e-6
+    assert total > 50
+    assert jumps <= 0.05 * total
