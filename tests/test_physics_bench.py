@@ -6,7 +6,7 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from kinodyn.bench import BENCHMARKS, physics  # noqa: E402
+from kinodyn.bench import BENCHMARKS, physics
 
 
 def test_registered():

@@ -229,3 +229,17 @@ def test_looped_walk_keeps_walking(body, walk):
     assert x[-1] == pytest.approx(x[0] + 5.0 * (walk.root_pos[-1, 0] - walk.root_pos[0, 0]) / walk.duration, abs=0.05)
     # the joints repeat exactly
     np.testing.assert_allclose(sim.local_rot[150, 1:], walk.local_rot[30, 1:], atol=1e-9)
+
+
+def test_play_from_a_phase_of_a_looped_clip(body, walk):
+    w = World()
+    c = w.add_character(body)
+    c.play(walk, start=1.5, loop=True, at=(0.0, 0.0, 0.0), align_floor=False)
+    w.run(1.0)
+    sim = c.trajectory()
+    assert np.abs(sim.root_pos[0, :2]).max() < 1e-9  # the frame at `start` stands at `at`
+    speed = np.diff(sim.root_pos[:, 0]) * 60.0
+    assert speed.min() > 0.5  # through the clip's end into the next repetition without a jump
+    np.testing.assert_allclose(sim.local_rot[0, 1:], walk.local_rot[90, 1:], atol=1e-9)
+    with pytest.raises(ParameterError):
+        c.play(walk, start=5.0)

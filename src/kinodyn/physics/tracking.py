@@ -15,6 +15,13 @@ a simulation step never calls Python. Gains are model parameters (``actuator_gai
 change at run time with :func:`apply_gains` (go limp on impact, stiffen for the return). A small passive
 joint damping (``passive_damping * I_j``) stays on always, so a limp body is a damped ragdoll.
 
+Two additions keep a servo from lagging its clip, both folded into the control targets so the engine
+still needs nothing from Python: a followed clip is read ``kv/kp`` seconds ahead (``lookahead``; then
+``kp (q(t + kv/kp) - q) - kv w ~ kp (q* - q) + kv (w* - w)``, a PD on the velocity error too), and the
+static torque of the target pose, gravity less the weight the feet on the floor carry, turns each target
+by ``torque / kp`` (``feedforward``, :func:`feedforward_targets`). On the built-in walk they bring the
+mean joint error of a body hanging from a fixed root from several degrees to under one.
+
 Shapes: ``B`` segments, ``A`` actuated segments (all but the root). Units: N m/rad, N m s/rad, kg m^2.
 """
 
@@ -34,6 +41,7 @@ __all__ = [
     "PDConfig",
     "apply_gains",
     "default_gains",
+    "feedforward_targets",
     "natural_frequency",
     "set_joint_passives",
     "subtree_inertia",

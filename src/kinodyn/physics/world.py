@@ -647,17 +647,21 @@ class World:
         """Play ``motion`` kinematically on ``char`` from clip time ``start`` (s), beginning now.
 
         Args:
-            at: ``(x, y, heading)`` ground transform for the clip's first frame (default: as recorded).
+            start: clip time (s) to begin at; with ``loop`` a phase in the cycle.
+            at: ``(x, y, heading)`` ground transform for the clip's frame at ``start`` (default: as
+                recorded).
             loop: repeat the clip (for cyclic clips: each repetition starts where the last one ended, moved
                 on the floor); otherwise hold the last frame.
             align_floor: ``True`` shifts the clip vertically so the body's lowest point touches the floor
                 (median over the clip); ``False`` plays it as is; a number shifts by that.
         """
+        if not (np.isfinite(start) and 0.0 <= start <= motion.duration + 1e-9):
+            raise ParameterError(f"start must be a clip time within [0, {motion.duration:g}] s, got {start!r}")
         if at is not None:
-            motion = motion.aligned_to(np.asarray(at, dtype=np.float64), 0)
-        if start:
-            motion = motion.trim(start)
-        char.clip = self._sample_clip(char, motion, self._step, loop, align_floor)
+            motion = motion.aligned_to(np.asarray(at, dtype=np.float64), min(round(start * motion.fps),
+                                                                             motion.num_frames - 1))
+        # the clip is sampled whole; it started `start` seconds ago
+        char.clip = self._sample_clip(char, motion, self._step - round(start / self.dt), loop, align_floor)
         char.mode = "kinematic"
         char._target = None
         self._set_kinematic(char)
