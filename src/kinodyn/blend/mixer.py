@@ -469,13 +469,7 @@ class ClipLibrary:
             return rot, z
         self.last_phase = P["phase"][np.where(a < 0.5, i0, i0 + 1)]
         _, _, cyc0, g0 = self._locate(P, clip, np.asarray(prev_tau, dtype=np.float64))
-        dc = np.maximum(cyc - cyc0, 0)
-        if np.any(dc > 0):
-            loop = P["loop"][clip]
-            for _ in range(int(dc.max())):
-                m = dc > 0
-                g = np.where(m[..., None], xform.compose(loop, g), g)
-                dc = dc - 1
+        g = _unroll_loops(P["loop"][clip], g, np.maximum(cyc - cyc0, 0))
         delta = xform.relative(g0, g)
         return rot, z, delta
 
@@ -1084,13 +1078,7 @@ class Mixer:
         z = zdb[i0] * (1.0 - a) + zdb[i0 + 1] * a
         zz = (w * z).sum(axis=1) + wn * nz
         if move:
-            dc = np.maximum(cyc - cyc_prev, 0)
-            if np.any(dc > 0):
-                loop = P["loop"][clip]
-                for _ in range(int(dc.max())):
-                    m = dc > 0
-                    g = np.where(m[..., None], xform.compose(loop, g), g)
-                    dc = dc - 1
+            g = _unroll_loops(P["loop"][clip], g, np.maximum(cyc - cyc_prev, 0))
             delta = xform.relative(g_prev, g)
             d = (w[..., None] * delta).sum(axis=1)
             self.ground = xform.compose(self.ground, d)
@@ -1117,3 +1105,12 @@ class Mixer:
     def sequence_of(self, key, character: int = 0) -> PhaseSequence:
         """The adapted support-phase sequence of a playing action."""
         return self._char(character).actions[key].seq
+
+
+def _unroll_loops(loop: np.ndarray, g: np.ndarray, cycles: np.ndarray) -> np.ndarray:
+    """Ground transforms ``g (..., 3)`` moved on by ``cycles (...)`` whole loops of their clip, each
+    loop displacing the root by ``loop (..., 3)``."""
+    for _ in range(int(cycles.max(initial=0))):
+        g = np.where((cycles > 0)[..., None], xform.compose(loop, g), g)
+        cycles = cycles - 1
+    return g
