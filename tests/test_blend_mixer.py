@@ -240,3 +240,60 @@ def test_compiled_frame_blend_matches_numpy(lib):
     q1 = blend_frames(P["rot"], i0, a, w, ref, wn)
     q2 = blend_frames_fast(P["rot"], i0, a, w, ref, wn)
     assert quat.angle_between(q1, q2).max() < 1e-12
+
+
+def _crowd_poses(lib, compiled: bool, synchronize: bool = True, n: int = 6, frames: int = 240):
+    """A small crowd with restarts, stops and higher-priority actions; every frame's poses."""
+    rng = np.random.default_rng(3)
+    mx = Mixer(lib, n, BlendConfig(synchronize=synchronize, max_actions=5))
+    mx._compiled = compiled
+    for i in range(n):
+        mx.start("walk", character=i, priority=1, speed=float(rng.uniform(0.85, 1.15)), key="walk")
+        mx.start("run", character=i, priority=1, speed=float(rng.uniform(0.9, 1.1)), key="run")
+        mx.start("walk", character=i, priority=1, speed=1.3, key="fast")
+    restart = rng.integers(0, 60, n)
+    roots, rots = [], []
+    for f in range(frames):
+        for i in np.nonzero((restart + f) % 60 == 0)[0]:
+            acts = mx.chars[i].actions
+            if "run" in acts and acts["run"].t_off is None:
+                mx.stop("run", character=i)
+            elif "run" not in acts:
+                mx.start("run", character=i, priority=1, key="run")
+        if f == 100:
+            mx.start("kick", character=1, priority=2)
+            mx.start("jump", character=2, priority=2)
+        if f == 150:
+            mx.stop("walk", character=0)
+            mx.start("punch", character=3, priority=3, speed=1.1)
+        p = mx.step(1 / 60)
+        roots.append(p.root_pos.copy())
+        rots.append(p.local_rot.copy())
+    return np.array(roots), np.array(rots)
+
+
+@pytest.mark.parametrize("synchronize", [True, False])
+def test_compiled_mixer_matches_numpy_reference(synchronize):
+    """The compiled per-frame path (weights, support constraints) gives the poses of the numpy
+    reference path, and those of the mixer before it was optimized (values stored from it)."""
+    lib = ClipLibrary.builtin(["idle", "walk", "run", "punch", "kick", "jump"])
+    r_fast, q_fast = _crowd_poses(lib, True, synchronize)
+    r_ref, q_ref = _crowd_poses(lib, False, synchronize)
+    np.testing.assert_allclose(r_fast, r_ref, atol=_TOL, rtol=0, err_msg="root")
+    np.testing.assert_allclose(q_fast, q_ref, atol=_TOL, rtol=0, err_msg="rotations")
+    if synchronize:
+        stored = [[0.0, 0.0, 0.989644181], [0.0, 0.0, 0.989643308], [1.501001129, 0.158754128, 0.930940561],
+                  [3.072134431, 0.334832778, 0.922517688], [2.148650728, 0.28913255, 0.824695885]]
+        np.testing.assert_allclose(r_fast[::60].reshape(-1, 3)[::5], stored, atol=2e-9, rtol=0, err_msg="stored")
+
+
+def test_figure_script_matches_the_mixer_before_optimization():
+    """Root path of the figure 12/13 script, every 150 frames, as the unoptimized mixer produced it."""
+    from kinodyn.blend.demo import transition_script
+    from kinodyn.blend.script import run_script
+
+    root = run_script(transition_script()).motion.root_pos[::150]
+    stored = [[0.0, 0.0, 0.99], [3.209621476, 0.067308041, 0.921696672], [9.588055559, 0.589363276, 0.910800908],
+              [15.703361232, 1.068200407, 0.917262961], [17.406645219, 1.16677151, 0.956226661],
+              [20.039338035, 1.105812193, 0.947019007], [20.045284596, 1.108124823, 0.99]]
+    np.testing.assert_allclose(root, stored, atol=2e-9, rtol=0)

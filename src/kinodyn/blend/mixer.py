@@ -304,6 +304,252 @@ def _blend_kernel(rot_db, i0, a, w, ref, wref, out):  # pragma: no cover - compi
             out[n, j, 3] = q3 / nrm
 
 
+@numba.njit(cache=True)
+def _support_kernel(w, wn, phase, support, planted):  # pragma: no cover - compiled
+    """Planted feet and the primary support of every character (the first part of ``_constrain``)."""
+    n_chars, n_slots = w.shape
+    for n in range(n_chars):
+        sl = 0.0
+        sr = 0.0
+        for k in range(n_slots):
+            p = phase[n, k]
+            sl += w[n, k] if (p == 2 or p == 0) else 0.0   # LS or DS put the left foot down
+            sr += w[n, k] if (p == 1 or p == 0) else 0.0   # RS or DS put the right foot down
+        pl = sl + wn[n] >= 0.5
+        pr = sr + wn[n] >= 0.5
+        planted[n, 0] = pl
+        planted[n, 1] = pr
+        prev = support[n]
+        if pl and pr:
+            if abs(sl - sr) < 1e-6:
+                mode = prev if ((prev == 1 and pl) or (prev == 2 and pr)) else 3
+            else:
+                mode = 1 if sl > sr else 2
+        elif pl:
+            mode = 1
+        elif pr:
+            mode = 2
+        else:
+            mode = 0
+        support[n] = mode
+
+
+@numba.njit(cache=True)
+def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was_planted, foot_pt, foot_xy, release,
+                 leg_joints, n_joints, end_par, end_off, n_ends, hips, ankles, reach, alpha, decay, lim, target, xy,
+                 need):  # pragma: no cover - compiled
+    """Where each foot is held and how far the root follows (the middle part of ``_constrain``, one pass
+    per character). Forward kinematics fills ``gr``, ``gp`` for the joints of ``chain`` (the root, the legs
+    and their ancestors, parents first) only; ``root``, ``gp``, ``foot_pt``, ``foot_xy``, ``release`` are
+    updated in place."""
+    n_chars = root.shape[0]
+    pz = np.empty(leg_joints.shape[1] + end_par.shape[1])
+    px = np.empty_like(pz)
+    py = np.empty_like(pz)
+    for n in range(n_chars):
+        # forward kinematics of the chain (the arithmetic of kinematics.fk_arrays)
+        for c in range(4):
+            gr[n, 0, c] = q[n, 0, c]
+        for c in range(3):
+            gp[n, 0, c] = root[n, c]
+        for i in range(chain.shape[0]):
+            j = chain[i]
+            p = parents[j]
+            aw, ax, ay, az = gr[n, p, 0], gr[n, p, 1], gr[n, p, 2], gr[n, p, 3]
+            bw, bx, by, bz = q[n, j, 0], q[n, j, 1], q[n, j, 2], q[n, j, 3]
+            gr[n, j, 0] = aw * bw - ax * bx - ay * by - az * bz
+            gr[n, j, 1] = aw * bx + ax * bw + ay * bz - az * by
+            gr[n, j, 2] = aw * by - ax * bz + ay * bw + az * bx
+            gr[n, j, 3] = aw * bz + ax * by - ay * bx + az * bw
+            vx, vy, vz = offsets[j, 0], offsets[j, 1], offsets[j, 2]
+            tx = 2.0 * (ay * vz - az * vy)
+            ty = 2.0 * (az * vx - ax * vz)
+            tz = 2.0 * (ax * vy - ay * vx)
+            gp[n, j, 0] = gp[n, p, 0] + vx + aw * tx + (ay * tz - az * ty)
+            gp[n, j, 1] = gp[n, p, 1] + vy + aw * ty + (az * tx - ax * tz)
+            gp[n, j, 2] = gp[n, p, 2] + vz + aw * tz + (ax * ty - ay * tx)
+        mode = support[n]
+        for s in range(2):
+            m = 0
+            for i in range(n_joints[s]):
+                j = leg_joints[s, i]
+                px[m], py[m], pz[m] = gp[n, j, 0], gp[n, j, 1], gp[n, j, 2]
+                m += 1
+            for i in range(n_ends[s]):
+                j = end_par[s, i]
+                w, x, y, z = gr[n, j, 0], gr[n, j, 1], gr[n, j, 2], gr[n, j, 3]
+                vx, vy, vz = end_off[s, i, 0], end_off[s, i, 1], end_off[s, i, 2]
+                tx = 2.0 * (y * vz - z * vy)
+                ty = 2.0 * (z * vx - x * vz)
+                tz = 2.0 * (x * vy - y * vx)
+                px[m] = gp[n, j, 0] + (vx + w * tx + (y * tz - z * ty))
+                py[m] = gp[n, j, 1] + (vy + w * ty + (z * tx - x * tz))
+                pz[m] = gp[n, j, 2] + (vz + w * tz + (x * ty - y * tx))
+                m += 1
+            low = 0
+            for i in range(1, m):
+                if pz[i] < pz[low]:
+                    low = i
+            # hysteresis: the point held so far stays held while it is within 1 cm of the lowest
+            old = foot_pt[n, s]
+            oldz = pz[max(old, 0)]
+            idx = old if (old >= 0 and oldz - pz[low] < 0.01) else low
+            xy[n, s, 0] = px[idx]
+            xy[n, s, 1] = py[idx]
+            if was_planted[n, s] and planted[n, s] and old >= 0 and idx != old:
+                foot_xy[n, s, 0] = xy[n, s, 0] + foot_xy[n, s, 0] - px[old]
+                foot_xy[n, s, 1] = xy[n, s, 1] + foot_xy[n, s, 1] - py[old]
+            foot_pt[n, s] = idx if planted[n, s] else -1
+        # the primary planted foot (or both) pulls the root toward where it is held
+        prim0 = planted[n, 0] and not was_planted[n, 0] and (mode == 1 or mode == 3)
+        prim1 = planted[n, 1] and not was_planted[n, 1] and (mode == 2 or mode == 3)
+        if prim0:
+            foot_xy[n, 0, 0] = xy[n, 0, 0]
+            foot_xy[n, 0, 1] = xy[n, 0, 1]
+        if prim1:
+            foot_xy[n, 1, 0] = xy[n, 1, 0]
+            foot_xy[n, 1, 1] = xy[n, 1, 1]
+        ex0, ey0 = foot_xy[n, 0, 0] - xy[n, 0, 0], foot_xy[n, 0, 1] - xy[n, 0, 1]
+        ex1, ey1 = foot_xy[n, 1, 0] - xy[n, 1, 0], foot_xy[n, 1, 1] - xy[n, 1, 1]
+        if mode == 1:
+            gx, gy = ex0, ey0
+        elif mode == 2:
+            gx, gy = ex1, ey1
+        elif mode == 3:
+            gx, gy = 0.5 * (ex0 + ex1), 0.5 * (ey0 + ey1)
+        else:
+            gx, gy = 0.0, 0.0
+        sx, sy = alpha * gx, alpha * gy
+        root[n, 0] += sx
+        root[n, 1] += sy
+        gp[n, 0, 0] += sx
+        gp[n, 0, 1] += sy
+        for i in range(chain.shape[0]):
+            gp[n, chain[i], 0] += sx
+            gp[n, chain[i], 1] += sy
+        for s in range(2):
+            xy[n, s, 0] += sx
+            xy[n, s, 1] += sy
+            pl = planted[n, s]
+            # secondary feet planted now are held where they are after the root moved
+            if pl and not was_planted[n, s] and not (prim0 if s == 0 else prim1):
+                foot_xy[n, s, 0] = xy[n, s, 0]
+                foot_xy[n, s, 1] = xy[n, s, 1]
+            # a foot that lifts off keeps the IK offset it had and lets it go smoothly (no pop)
+            if pl:
+                release[n, s, 0] = 0.0
+                release[n, s, 1] = 0.0
+            elif was_planted[n, s]:
+                release[n, s, 0] = foot_xy[n, s, 0] - xy[n, s, 0]
+                release[n, s, 1] = foot_xy[n, s, 1] - xy[n, s, 1]
+            else:
+                release[n, s, 0] *= decay
+                release[n, s, 1] *= decay
+            ox = foot_xy[n, s, 0] - xy[n, s, 0]
+            oy = foot_xy[n, s, 1] - xy[n, s, 1]
+            if pl:
+                # a planted foot never strays more than `lim` from where the blend puts it, nor further
+                # than the leg reaches (see _constrain_reference)
+                dist = np.sqrt(ox * ox + oy * oy)
+                scale = lim / max(dist, 1e-12) if dist > lim else 1.0
+                h, a = hips[s], ankles[s]
+                e0, e1, e2 = gp[n, a, 0] - gp[n, h, 0], gp[n, a, 1] - gp[n, h, 1], gp[n, a, 2] - gp[n, h, 2]
+                ee = e0 * e0 + e1 * e1 + e2 * e2
+                r = max(reach[s], np.sqrt(ee))
+                d0, d1 = ox * scale, oy * scale
+                a_ = d0 * d0 + d1 * d1
+                b_ = e0 * d0 + e1 * d1
+                c_ = ee - r * r
+                disc = max(b_ * b_ - a_ * c_, 0.0)
+                lam = (-b_ + np.sqrt(disc)) / max(a_, 1e-12) if a_ > 1e-12 else 1.0
+                scale *= min(max(lam, 0.0), 1.0)
+                if scale < 1.0:
+                    foot_xy[n, s, 0] = xy[n, s, 0] + ox * scale
+                    foot_xy[n, s, 1] = xy[n, s, 1] + oy * scale
+                target[n, s, 0] = foot_xy[n, s, 0]
+                target[n, s, 1] = foot_xy[n, s, 1]
+            else:
+                target[n, s, 0] = xy[n, s, 0] + release[n, s, 0]
+                target[n, s, 1] = xy[n, s, 1] + release[n, s, 1]
+            dx = target[n, s, 0] - xy[n, s, 0]
+            dy = target[n, s, 1] - xy[n, s, 1]
+            need[n, s] = np.sqrt(dx * dx + dy * dy) > 1e-6
+
+
+@numba.njit(cache=True)
+def _mix_weights_kernel(t, seg, speed, ramp, prio, h, tau, w, wn):  # pragma: no cover - compiled
+    """Per character: action times ``h`` (the frozen warp segments), clip times ``tau``, activations and
+    priority weights ``w``, ``wn`` (the arithmetic of eval_poly, activation and priority_weights)."""
+    n_chars, n_slots = h.shape
+    act = np.empty(n_slots)
+    group = np.empty(n_slots)
+    logf = np.empty(n_slots)
+    for n in range(n_chars):
+        for s in range(n_slots):
+            t0 = seg[n, s, 0]
+            u = min(max(t - t0, 0.0), max(seg[n, s, 1] - t0, 0.0))
+            hh = ((seg[n, s, 5] * u + seg[n, s, 4]) * u + seg[n, s, 3]) * u + seg[n, s, 2]
+            h[n, s] = hh
+            tau[n, s] = hh * speed[n, s]
+            on, ri, off, ro = ramp[n, s, 0], ramp[n, s, 1], ramp[n, s, 2], ramp[n, s, 3]
+            if not np.isfinite(on):
+                up = 0.0
+            elif ri > 0:
+                x = min(max((t - on) / max(ri, 1e-12), 0.0), 1.0)
+                up = x * x * (3.0 - 2.0 * x)
+            else:
+                up = 1.0 if t >= on else 0.0
+            if not np.isfinite(off):
+                down = 0.0
+            elif ro > 0:
+                x = min(max((t - off) / max(ro, 1e-12), 0.0), 1.0)
+                down = x * x * (3.0 - 2.0 * x)
+            else:
+                down = 1.0 if t >= off else 0.0
+            act[s] = up * (1.0 - down)
+        for s in range(n_slots):
+            # two interleaved partial sums, the order of numpy's einsum over the level
+            a0 = 0.0
+            a1 = 0.0
+            members = 0
+            for k in range(n_slots):
+                v = act[k] if prio[n, k] == prio[n, s] else 0.0
+                if k % 2 == 0:
+                    a0 += v
+                else:
+                    a1 += v
+                if prio[n, k] == prio[n, s]:
+                    members += 1
+            group[s] = a0 + a1
+            free = max(1.0 - min(group[s], 1.0), 0.0)
+            logf[s] = np.log(free) / members if free > 0.0 else -np.inf
+        tot = 0.0
+        for s in range(n_slots):
+            a0 = 0.0
+            a1 = 0.0
+            blocked = False
+            for k in range(n_slots):
+                v = 0.0
+                if prio[n, k] > prio[n, s]:
+                    if np.isfinite(logf[k]):
+                        v = logf[k]
+                    else:
+                        blocked = True
+                if k % 2 == 0:
+                    a0 += v
+                else:
+                    a1 += v
+            g = group[s]
+            if g > 0:
+                rem = 0.0 if blocked else np.exp(a0 + a1)
+                ws = rem * min(g, 1.0) * act[s] / g
+            else:
+                ws = 0.0
+            w[n, s] = ws
+            tot += ws
+        wn[n] = min(max(1.0 - tot, 0.0), 1.0)
+
+
 def blend_frames_fast(rot_db, i0, a, w, ref, wref) -> np.ndarray:
     """Compiled :func:`blend_frames` (same result); one pass per character, no temporaries."""
     out = np.empty((w.shape[0], ref.shape[0], 4))
@@ -586,7 +832,7 @@ class _Character:
         squeeze its first elements into the running action's timing while it fades in). Pure Python:
         it runs once per planned step.
         """
-        state = tuple((a.t_on, a.t_off) for a in self.actions.values())
+        state = [(a.t_on, a.t_off) for a in self.actions.values()]
         c = self._wcache
         if c is not None and c[0] == state and (c[1] <= t < c[2] or t == c[1]):
             self.weights_valid_until = c[2]
@@ -694,29 +940,34 @@ class _Character:
             return
         guard = 0
         changed = False
-        while not self.sync.idle and self.planner.T.get(self.sync.current + 1, math.inf) <= t:
+        sync = self.sync
+        planner = self.planner
+        actions = self.actions
+        while sync.tracks and planner.T.get(sync.current + 1, math.inf) <= t:
             guard += 1
             if guard > 10_000:
                 raise ParameterError("time warp produced degenerate steps")
-            tk = self.planner.T[self.sync.current + 1]
-            for key, a in list(self.actions.items()):
-                if a.t_on is not None and a.gone(tk):
-                    self.sync.remove(key, self.sync.current + 1)
-            self.sync.enter_next()
-            k = self.sync.current
-            if len(self.sync.tracks) + len(self.sync.pending) != len(self.actions):
-                live = {tr.key for tr in self.sync.tracks}
-                for key in [key for key, a in self.actions.items() if a.t_on is not None and key not in live]:
-                    del self.actions[key]
+            tk = planner.T[sync.current + 1]
+            gone = [key for key, a in actions.items()
+                    if a.t_on is not None and a.t_off is not None and tk >= a.t_off + a.ramp_out]
+            for key in gone:
+                sync.remove(key, sync.current + 1)
+            sync.enter_next()
+            k = sync.current
+            if len(sync.tracks) + len(sync.pending) != len(actions):
+                live = {tr.key for tr in sync.tracks}
+                for key in [key for key, a in actions.items() if a.t_on is not None and key not in live]:
+                    del actions[key]
                     changed = True
-            if self.sync.idle:
+            if not sync.tracks:
                 break
-            for tr in self.sync.tracks:
-                a = self.actions[tr.key]
-                if a.t_on is None and tr.first == k:
-                    a.t_on = tk
-                    changed = True
-            self.planner.enter()
+            for tr in sync.tracks:
+                if tr.first == k:
+                    a = actions[tr.key]
+                    if a.t_on is None:
+                        a.t_on = tk
+                        changed = True
+            planner.enter()
             changed |= self._auto_stops(tk)
         if changed or self.sync.idle:
             self._layout()
@@ -745,52 +996,77 @@ class _Character:
         n = self.index
         planner = self.planner
         k = self.sync.current
-        for s, key in enumerate(self.order):
-            tm = planner.timing.get(key)
+        T = planner.T
+        tk = T.get(k)
+        timing = planner.timing
+        order = self.order
+        on = m._ramp[n, :len(order), 0].tolist()
+        rows = []
+        for s, key in enumerate(order):
+            tm = timing.get(key)
             seg = None if tm is None else tm.current
-            if seg is not None and seg.t1 > seg.t0 and m._ramp[n, s, 0] != math.inf and seg.t0 == planner.T.get(k):
-                m._seg[n, s] = (seg.t0, seg.t1) + seg.coef
+            if seg is not None and seg.t1 > seg.t0 and on[s] != math.inf and seg.t0 == tk:
+                rows.append((seg.t0, seg.t1) + seg.coef)
             else:
                 self._write_segments()
                 return
-        m._next[n] = self.next_event()
+        if rows:
+            m._seg[n, :len(rows)] = rows
+        m._next[n] = T.get(k + 1, math.inf)  # next_event() while the synchronizer plays
 
     def _write_segments(self):
+        """Write every slot of this character (after its actions or their order changed)."""
         m = self.mixer
         n = self.index
         S = m.slots
-        k = None if self.sync is None else self.sync.current
-        prev = {m._key[n][s]: (m._prev_tau[n, s], m._prev_g[n, s].copy(), m._prev_cyc[n, s], m._fresh[n, s])
-                for s in range(S) if m._key[n][s] is not None}
-        m._count[n] = len(self.order)
-        for s in range(S):
-            if s < len(self.order):
-                a = self.actions[self.order[s]]
-                m._clip[n, s] = a.clip
-                m._speed[n, s] = a.speed
-                m._prio[n, s] = a.priority
-                on, ri, off, ro = a.weight_params()
-                if self.sync is None:
-                    m._seg[n, s] = (a.t_on, math.inf, a.h0, 1.0, 0.0, 0.0)
+        sync = self.sync
+        k = None if sync is None else sync.current
+        tracks = None if sync is None else {x.key: x for x in sync.tracks}
+        order = self.order
+        L = len(order)
+        clip, speed, prio, seg, ramp = [], [], [], [], []
+        for key in order:
+            a = self.actions[key]
+            clip.append(a.clip)
+            speed.append(a.speed)
+            prio.append(a.priority)
+            on, ri, off, ro = a.weight_params()
+            if sync is None:
+                seg.append((a.t_on, math.inf, a.h0, 1.0, 0.0, 0.0))
+            else:
+                tr = tracks.get(a.key)
+                if tr is None or tr.elem(k) is None:
+                    on = math.inf  # waiting: no weight
+                    seg.append((0.0, math.inf, a.h0, 0.0, 0.0, 0.0))
                 else:
-                    tr = next((x for x in self.sync.tracks if x.key == a.key), None)
-                    if tr is None or tr.elem(k) is None:
-                        on = math.inf  # waiting: no weight
-                        m._seg[n, s] = (0.0, math.inf, a.h0, 0.0, 0.0, 0.0)
-                    else:
-                        seg = self.planner.segment(a.key)
-                        m._seg[n, s] = (seg.t0, seg.t1) + seg.coef
-                m._ramp[n, s] = (on, ri, off, ro)
-                if m._key[n][s] != a.key:
-                    m._key[n][s] = a.key
-                    if a.key in prev:
-                        m._prev_tau[n, s], m._prev_g[n, s], m._prev_cyc[n, s], m._fresh[n, s] = prev[a.key]
+                    sg = self.planner.segment(a.key)
+                    seg.append((sg.t0, sg.t1) + sg.coef)
+            ramp.append((on, ri, off, ro))
+        keys = m._key[n]
+        new_keys = [self.actions[key].key for key in order] + [None] * (S - L)
+        if keys != new_keys:  # slots changed hands: carry each action's sampling state to its new slot
+            prev = {keys[s]: (m._prev_tau[n, s], m._prev_g[n, s].copy(), m._prev_cyc[n, s], m._fresh[n, s])
+                    for s in range(S) if keys[s] is not None}
+            for s in range(S):
+                key = new_keys[s]
+                if key is None:
+                    keys[s] = None
+                elif keys[s] != key:
+                    keys[s] = key
+                    if key in prev:
+                        m._prev_tau[n, s], m._prev_g[n, s], m._prev_cyc[n, s], m._fresh[n, s] = prev[key]
                     else:
                         m._fresh[n, s] = True
-            else:
-                m._ramp[n, s] = (math.inf, 0.0, math.inf, 0.0)
-                m._seg[n, s] = (0.0, math.inf, 0.0, 0.0, 0.0, 0.0)
-                m._key[n][s] = None
+        m._count[n] = L
+        if L:
+            m._clip[n, :L] = clip
+            m._speed[n, :L] = speed
+            m._prio[n, :L] = prio
+            m._seg[n, :L] = seg
+            m._ramp[n, :L] = ramp
+        if L < S:
+            m._ramp[n, L:] = (math.inf, 0.0, math.inf, 0.0)
+            m._seg[n, L:] = (0.0, math.inf, 0.0, 0.0, 0.0, 0.0)
         m._next[n] = self.next_event()
 
 
@@ -851,6 +1127,8 @@ class Mixer:
         if self._legs is not None:  # hip-to-ankle length of each leg (the rest bone lengths)
             bl = library.skeleton.bone_lengths()
             self._reach = [float(bl[leg.knee] + bl[leg.ankle]) for leg in self._legs]
+        self._legarr = None
+        self._compiled = True  # False: the numpy reference of the support constraints (tests)
         self._neutral = self._neutral_pose(neutral)
         self.chars = [_Character(self, i) for i in range(N)]
         self.recordings = [Recording() for _ in range(N)] if record else None
@@ -877,8 +1155,78 @@ class Mixer:
         rot, z = lib.sample(np.array([lib.index(neutral)]), np.array([0.0]))
         return rot[0], float(z[0])
 
+    def _leg_arrays(self):
+        """The legs' foot points as padded arrays for :func:`_hold_kernel` (built once)."""
+        if self._legarr is None:
+            sk = self.library.skeleton
+            nj = np.array([len(leg.joints) for leg in self._legs], dtype=np.int64)
+            ne = np.array([len(leg.ends) for leg in self._legs], dtype=np.int64)
+            joints = np.zeros((2, max(int(nj.max()), 1)), dtype=np.int64)
+            par = np.zeros((2, max(int(ne.max()), 1)), dtype=np.int64)
+            off = np.zeros((2, par.shape[1], 3))
+            for s, leg in enumerate(self._legs):
+                joints[s, :nj[s]] = leg.joints
+                if ne[s]:
+                    par[s, :ne[s]] = sk.end_parents[leg.ends]
+                    off[s, :ne[s]] = sk.end_offsets[leg.ends]
+            self._legarr = (joints, nj, par, off, ne, np.array([leg.hip for leg in self._legs], dtype=np.int64),
+                            np.array([leg.ankle for leg in self._legs], dtype=np.int64),
+                            np.array(self._reach, dtype=np.float64))
+            need = set()
+            for leg in self._legs:
+                for j in list(leg.joints) + list(sk.end_parents[leg.ends]) + [leg.hip, leg.knee]:
+                    j = int(j)
+                    while j > 0:
+                        need.add(j)
+                        j = int(sk.parents[j])
+            chain = np.array(sorted(need), dtype=np.int64)  # parents come first (parents[j] < j)
+            self._legarr += (chain, np.ascontiguousarray(sk.offsets, dtype=np.float64),
+                             np.ascontiguousarray(sk.parents, dtype=np.int64))
+        return self._legarr
+
     def _constrain(self, root, q, w, wn, phase, dt: float):
-        """Enforce the support (:mod:`kinodyn.blend.footlock`); returns new ``root (N, 3)``, ``q (N, J, 4)``."""
+        """Enforce the support (:mod:`kinodyn.blend.footlock`); returns new ``root (N, 3)``, ``q (N, J, 4)``.
+
+        Compiled version of :meth:`_constrain_reference` (same result up to rounding): one pass per
+        character for the support, forward kinematics, one pass per character for the holds, the IK.
+        """
+        if not self._compiled:
+            return self._constrain_reference(root, q, w, wn, phase, dt)
+        from kinodyn.blend.footlock import pin_feet_fast
+
+        N = len(root)
+        planted = np.empty((N, 2), dtype=np.bool_)
+        support = np.ascontiguousarray(self.support, dtype=np.int64)
+        _support_kernel(np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(wn, dtype=np.float64),
+                        np.ascontiguousarray(phase, dtype=np.int8), support, planted)
+        self.support = support
+        if not planted.any() and not self._planted.any() and not self._release.any():
+            return root, q
+        hl = self.config.root_halflife
+        alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
+        decay = 0.5 ** (dt / self.config.release_halflife) if self.config.release_halflife > 0 else 0.0
+        root = np.array(root, dtype=np.float64)
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        J = q.shape[1]
+        gr = np.zeros((N, J, 4))  # only the legs' chains are computed
+        gp = np.zeros((N, J, 3))
+        target = np.empty((N, 2, 2))
+        xy = np.empty((N, 2, 2))
+        need = np.empty((N, 2), dtype=np.bool_)
+        joints, nj, par, off, ne, hips, ankles, reach, chain, offsets, parents = self._leg_arrays()
+        _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, self._planted, self._foot_pt, self._foot_xy, self._release,
+                     joints, nj, par, off, ne, hips, ankles, reach, alpha, decay,
+                     float(self.config.max_foot_offset), target, xy, need)
+        self._planted = planted
+        heading = self.ground[:, 2]
+        for s, leg in enumerate(self._legs):
+            r = np.nonzero(need[:, s])[0]
+            if len(r):
+                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r])
+        return root, q
+
+    def _constrain_reference(self, root, q, w, wn, phase, dt: float):
+        """Numpy reference of :meth:`_constrain` (the same steps, array by array)."""
         from kinodyn.blend.footlock import pin_feet_fast
         from kinodyn.kinematics import fk_arrays
 
@@ -1051,12 +1399,17 @@ class Mixer:
         P = self.library._pack()
         S = max(int(self._count.max()), 1)
         seg = self._seg[:, :S]
-        u = np.clip(t - seg[..., 0], 0.0, np.maximum(seg[..., 1] - seg[..., 0], 0.0))
-        h = eval_poly(seg[..., 2:6], u)
-        tau = h * self._speed[:, :S]
         r = self._ramp[:, :S]
-        act = activation(t, r[..., 0], r[..., 1], r[..., 2], r[..., 3])
-        w, wn = priority_weights(act, self._prio[:, :S])
+        if self._compiled:
+            N = self.n
+            h, tau, w, wn = np.empty((N, S)), np.empty((N, S)), np.empty((N, S)), np.empty(N)
+            _mix_weights_kernel(float(t), seg, self._speed[:, :S], r, self._prio[:, :S], h, tau, w, wn)
+        else:
+            u = np.clip(t - seg[..., 0], 0.0, np.maximum(seg[..., 1] - seg[..., 0], 0.0))
+            h = eval_poly(seg[..., 2:6], u)
+            tau = h * self._speed[:, :S]
+            act = activation(t, r[..., 0], r[..., 1], r[..., 2], r[..., 3])
+            w, wn = priority_weights(act, self._prio[:, :S])
         clip = self._clip[:, :S]
         i0, a, cyc, g = ClipLibrary._locate(P, clip, tau)
         fresh = self._fresh[:, :S]

@@ -223,24 +223,30 @@ class WarpPlanner:
         """Recompute boundaries and knots of steps ``from_step .. frontier`` (earlier ones are frozen)."""
         sync = self.sync
         T = self.T
-        for st in [x for x in T if x > from_step]:
+        # step keys are consecutive integers: drop those after from_step
+        st = from_step + 1
+        while st in T:
             del T[st]
+            st += 1
         timing = self.timing
         for tm in timing.values():
             kn = tm.knots
-            for st in [x for x in kn if x > from_step]:
-                del kn[st]
+            if kn and max(kn) > from_step:
+                for st in [x for x in kn if x > from_step]:
+                    del kn[st]
         tracks = sync.tracks
         for tr in tracks:
             if tr.key not in timing:
                 tm = timing[tr.key] = _TrackTiming()
                 if self.keep_history:
                     self.timing_history[tr.key] = tm
-        w_now = self.weights_at(T[from_step])
+        owner = getattr(self.weights_at, "__self__", None)
         w_time = T[from_step]
-        until = getattr(self.weights_at, "__self__", None)
-        until = getattr(until, "weights_valid_until", -math.inf)
+        w_now = self.weights_at(w_time)
+        until = getattr(owner, "weights_valid_until", -math.inf)
         share = self._share
+        # per track: (track, knots, first, elems, end) looked up once
+        rows = [(tr, timing[tr.key].knots, tr.first, tr.elems, tr.end, tr.key) for tr in tracks]
         for s in range(from_step, sync.frontier + 1):
             num = den = tot = 0.0
             cnt = 0
@@ -249,17 +255,23 @@ class WarpPlanner:
             if ts >= until and ts != w_time:  # a ramp event lies behind (or a ramp runs): weigh again
                 w_time = ts
                 w_now = self.weights_at(ts)
-                until = getattr(getattr(self.weights_at, "__self__", None), "weights_valid_until", -math.inf)
-            for tr in tracks:
-                j = s - tr.first if tr.first is not None else -1
-                if j < 0 or j >= len(tr.elems) or (tr.end is not None and s >= tr.end):
+                until = getattr(owner, "weights_valid_until", -math.inf)
+            for tr, kn, first, elems, end, key in rows:
+                j = s - first if first is not None else -1
+                n = len(elems)
+                if j < 0 or j >= n or (end is not None and s >= end):
                     continue
-                kn = timing[tr.key].knots
+                e = elems[j]
                 if j == 0:  # a track starts at the beginning of its first element
-                    kn[s] = tr.span(tr.elems[0])[0]
-                sp = share(tr, s, from_step, kn)
+                    kn[s] = tr.span(e)[0]
+                if (j == 0 or elems[j - 1] != e) and (j + 1 == n or elems[j + 1] != e):
+                    # an element played in one step only (the common case of _share)
+                    t0, t1 = tr.span(e)
+                    sp = t1 - t0
+                else:
+                    sp = share(tr, s, from_step, kn)
                 spans.append((kn, sp))
-                w = w_now.get(tr.key, 0.0)
+                w = w_now.get(key, 0.0)
                 num += w * sp
                 den += w
                 tot += sp
@@ -292,15 +304,19 @@ class WarpPlanner:
         sync = self.sync
         k = sync.current
         live = {t.key for t in sync.tracks}
-        for key in [x for x in self.timing if x not in live]:
-            del self.timing[key]
+        if not live.issuperset(self.timing):
+            for key in [x for x in self.timing if x not in live]:
+                del self.timing[key]
         T = self.T
-        for st in [x for x in T if x < k]:
+        st = k - 1  # step keys are consecutive integers: drop those before k
+        while st in T:
             del T[st]
+            st -= 1
         for tm in self.timing.values():  # knots of played steps are in the history, not needed here
             kn = tm.knots
-            for st in [x for x in kn if x < k]:
-                del kn[st]
+            if kn and min(kn) < k:
+                for st in [x for x in kn if x < k]:
+                    del kn[st]
         last = max(T) - 1  # last step with a duration
         start = last + 1 if sync.dirty is None else min(sync.dirty, last + 1)
         start = max(start, k)
