@@ -86,16 +86,30 @@ function softwareGl() {
 
 function lighter(c, k) { return colorOf(c).lerp(new THREE.Color(0xffffff), k); }
 
+// An unlit material of one flat colour, with that colour stored in display (sRGB) space and the
+// per-pixel linear-to-sRGB conversion left out of its shader. The picture is the same (fog and blending
+// come after that conversion and work in display space anyway), but on a software rasterizer the
+// conversion (three pow() a pixel) is most of the cost of the floor, which fills half the picture.
+function displaySpace(mat) {
+  mat.color.convertLinearToSRGB();
+  mat.onBeforeCompile = (shader) => {
+    shader.fragmentShader = shader.fragmentShader.replace('#include <colorspace_fragment>', '');
+  };
+  mat.customProgramCacheKey = () => 'kd-display-space';
+  return mat;
+}
+
+function displayColor(c) { return colorOf(c).convertLinearToSRGB(); }
+
 const _m = new THREE.Matrix4();
 const _q = new THREE.Quaternion();
 const _s = new THREE.Vector3();
 const _a = new THREE.Vector3();
-const _b = new THREE.Vector3();
 const _d = new THREE.Vector3();
 
 function makeArrow(color) {
   const g = new THREE.Group();
-  const mat = new THREE.MeshBasicMaterial({ color, transparent: true, opacity: 1, depthTest: true });
+  const mat = displaySpace(new THREE.MeshBasicMaterial({ color, transparent: true, opacity: 1, depthTest: true }));
   const shaft = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 10), mat);
   const head = new THREE.Mesh(new THREE.ConeGeometry(1, 1, 14), mat);
   g.add(shaft, head);
@@ -118,7 +132,205 @@ function setArrow(arrow, a, b, r) {
   head.position.set(0, len - hl / 2, 0);
 }
 
+const FLOOR_COLOR = 0xeeebe4;
+
+// A floor grid of size x size one-metre squares in the XY plane, centre lines in colour c1, the others
+// in c2, drawn at the given opacity over a floor of colour `under`: the colours are blended with the
+// floor's here (in display space, as the blending of a transparent grid would) so that the grid is an
+// opaque draw.
+function makeGrid(size, c1, c2, under, opacity) {
+  const h = size / 2, pos = [], col = [];
+  const floor = new THREE.Color().setHex(under, THREE.LinearSRGBColorSpace);
+  const mix = (c) => new THREE.Color().setHex(c, THREE.LinearSRGBColorSpace).lerp(floor, 1 - opacity);
+  const k1 = mix(c1), k2 = mix(c2);
+  for (let i = 0; i <= size; i++) {
+    const k = -h + i, c = 2 * i === size ? k1 : k2;
+    pos.push(-h, k, 0, h, k, 0, k, -h, 0, k, h, 0);
+    for (let v = 0; v < 4; v++) col.push(c.r, c.g, c.b);
+  }
+  const g = new THREE.BufferGeometry();
+  g.setAttribute('position', new THREE.Float32BufferAttribute(pos, 3));
+  g.setAttribute('color', new THREE.Float32BufferAttribute(col, 3));
+  const mat = new THREE.LineBasicMaterial({ vertexColors: true, toneMapped: false });
+  mat.onBeforeCompile = (shader) => {
+    shader.fragmentShader = shader.fragmentShader.replace('#include <colorspace_fragment>', '');
+  };
+  mat.customProgramCacheKey = () => 'kd-display-space';
+  return new THREE.LineSegments(g, mat);
+}
+
+// ------------------------------------------------------------------------------------------ bodies
+
+// The capsules of every character of a scene in one mesh and one draw call. Each bone is a capsule:
+// every vertex of a capsule of radius r around the segment a-b is an end point (a or b) plus r times its
+// normal, so the geometry holds unit normals and which end each vertex belongs to, and the vertex
+// shader places it from the bone's end points and radius, read from a small float texture (two texels
+// a bone: a.xyz + radius, b.xyz) that the characters fill in each frame. The joints are the capsules'
+// round ends: where bones of several radii meet, the thickest one's end covers the others (as the
+// sphere of the largest radius did). Per-vertex colours give each character its colour.
+//
+// Levels of detail: under software WebGL the frame time is mostly the capsules' vertices, so each
+// character is drawn with the coarsest capsule whose outline stays within about half a pixel of a
+// true circle at its current size on screen (CAPSULE_LODS: segments around the axis, rings from pole to
+// equator, and the largest on-screen bone radius in pixels it is used for).
+const CAPSULE_LODS = [
+  { S: 6, H: 2, maxPx: 2 },
+  { S: 10, H: 4, maxPx: 8 },
+  { S: 16, H: 6, maxPx: Infinity },
+];
+
+function capsuleTemplate(S, H) {
+  const nrm = [], end = [], idx = [];
+  // Rows from the bottom pole (end a) to the top pole (end b); the two equator rows make the side.
+  for (let half = 0; half < 2; half++) {
+    for (let i = 0; i <= H; i++) {
+      const phi = half === 0 ? Math.PI - (i * Math.PI) / (2 * H) : Math.PI / 2 - (i * Math.PI) / (2 * H);
+      const y = Math.cos(phi), rr = Math.sin(phi);
+      for (let j = 0; j < S; j++) {
+        const th = (2 * Math.PI * j) / S;
+        nrm.push(rr * Math.sin(th), y, rr * Math.cos(th));
+        end.push(half);
+      }
+    }
+  }
+  const rows = 2 * (H + 1);
+  for (let r = 0; r < rows - 1; r++) {
+    for (let j = 0; j < S; j++) {
+      const a = r * S + j, b = r * S + ((j + 1) % S), c = (r + 1) * S + j, d = (r + 1) * S + ((j + 1) % S);
+      if (r !== 0) idx.push(a, b, c);  // no zero-area triangles at the poles
+      if (r !== rows - 2) idx.push(b, d, c);
+    }
+  }
+  return { nrm, end, idx, verts: rows * S };
+}
+
+const CAPSULE_PARS = `
+uniform sampler2D kdBones;
+attribute vec2 kdBone;
+`;
+const CAPSULE_NORMAL = `
+vec4 kdA = texelFetch( kdBones, ivec2( 0, int( kdBone.x ) ), 0 );
+vec4 kdB = texelFetch( kdBones, ivec2( 1, int( kdBone.x ) ), 0 );
+vec3 kdAxis = kdB.xyz - kdA.xyz;
+float kdLen = length( kdAxis );
+vec3 kdY = kdLen > 1e-6 ? kdAxis / kdLen : vec3( 0.0, 0.0, 1.0 );
+vec3 kdX = normalize( cross( abs( kdY.z ) < 0.9 ? vec3( 0.0, 0.0, 1.0 ) : vec3( 1.0, 0.0, 0.0 ), kdY ) );
+vec3 kdZ = cross( kdX, kdY );
+vec3 objectNormal = kdX * normal.x + kdY * normal.y + kdZ * normal.z;
+`;
+const CAPSULE_POSITION = `
+vec3 transformed = ( kdBone.y > 0.5 ? kdB.xyz : kdA.xyz ) + kdA.w * objectNormal;
+`;
+
+class Bodies {
+  // chars: [{bones: [joint index], spec}] in slot order.
+  constructor(chars, software) {
+    const temps = CAPSULE_LODS.map((l) => capsuleTemplate(l.S, l.H));
+    const n = Math.max(chars.reduce((k, ch) => k + ch.bones.length, 0), 1);
+    this.data = new Float32Array(8 * n);
+    this.texture = new THREE.DataTexture(this.data, 2, n, THREE.RGBAFormat, THREE.FloatType);
+    this.texture.minFilter = this.texture.magFilter = THREE.NearestFilter;
+    this.texture.generateMipmaps = false;
+    this.texture.needsUpdate = true;
+    // One section a level of detail, each holding every bone of every character.
+    const nv = temps.reduce((k, t) => k + t.verts * n, 0), ni = temps.reduce((k, t) => k + t.idx.length * n, 0);
+    const nrm = new Float32Array(3 * nv), bone = new Float32Array(2 * nv), col = new Float32Array(3 * nv);
+    const idx = new (nv > 65535 ? Uint32Array : Uint16Array)(ni);
+    this.sections = [];  // per level: {start: first index, per: indices a bone}
+    let v0 = 0, i0 = 0;
+    temps.forEach((t) => {
+      this.sections.push({ start: i0, per: t.idx.length });
+      let slot = 0;
+      for (const ch of chars) {
+        const c = colorOf(ch.spec.color);
+        for (let b = 0; b < ch.bones.length; b++, slot++) {
+          nrm.set(t.nrm, 3 * v0);
+          for (let v = 0; v < t.verts; v++) {
+            bone[2 * (v0 + v)] = slot;
+            bone[2 * (v0 + v) + 1] = t.end[v];
+            col[3 * (v0 + v)] = c.r; col[3 * (v0 + v) + 1] = c.g; col[3 * (v0 + v) + 2] = c.b;
+          }
+          for (let i = 0; i < t.idx.length; i++) idx[i0 + i] = v0 + t.idx[i];
+          v0 += t.verts;
+          i0 += t.idx.length;
+        }
+      }
+    });
+    let slot = 0;
+    for (const ch of chars) { ch.slot = slot; slot += ch.bones.length; }
+    this.chars = chars;
+    const geo = new THREE.BufferGeometry();
+    geo.setAttribute('position', new THREE.BufferAttribute(nrm, 3));  // unused: placed by the shader
+    geo.setAttribute('normal', new THREE.BufferAttribute(nrm, 3));
+    geo.setAttribute('kdBone', new THREE.BufferAttribute(bone, 2));
+    geo.setAttribute('color', new THREE.BufferAttribute(col, 3));
+    geo.setIndex(new THREE.BufferAttribute(idx, 1));
+    this.geometry = geo;
+    const opts = { color: 0xffffff, vertexColors: true };
+    const mat = software ? new THREE.MeshLambertMaterial(opts)
+      : new THREE.MeshStandardMaterial({ ...opts, roughness: 0.55, metalness: 0.05 });
+    const texture = this.texture;
+    mat.onBeforeCompile = (shader) => {
+      shader.uniforms.kdBones = { value: texture };
+      shader.vertexShader = shader.vertexShader
+        .replace('#include <common>', `#include <common>\n${CAPSULE_PARS}`)
+        .replace('#include <beginnormal_vertex>', CAPSULE_NORMAL)
+        .replace('#include <begin_vertex>', CAPSULE_POSITION);
+    };
+    mat.customProgramCacheKey = () => 'kd-capsules';
+    this.mesh = new THREE.Mesh(geo, [mat]);  // drawn by groups: the level of detail of each character
+    this.mesh.name = 'bodies';
+    this.mesh.frustumCulled = false;
+  }
+
+  // Bone end points and radii of one character's current pose.
+  write(ch, cur) {
+    const d = this.data, par = ch.spec.parents, rad = ch.spec.radius;
+    let o = 8 * ch.slot;
+    for (const p of ch.bones) {
+      const q = par[p];
+      d[o] = cur[3 * q]; d[o + 1] = cur[3 * q + 1]; d[o + 2] = cur[3 * q + 2]; d[o + 3] = rad[p];
+      d[o + 4] = cur[3 * p]; d[o + 5] = cur[3 * p + 1]; d[o + 6] = cur[3 * p + 2];
+      o += 8;
+    }
+  }
+
+  // Choose each character's level of detail: pxPerMetre(ch) is its scale on screen (pixels a metre).
+  // Runs of characters at the same level that follow one another are one draw call.
+  setDetail(pxPerMetre) {
+    const geo = this.geometry;
+    geo.clearGroups();
+    let last = null;
+    for (const ch of this.chars) {
+      const ppm = pxPerMetre(ch), rad = ch.spec.radius;
+      ch.lod = 0;
+      // Bones are sorted thickest first: each level is one run of them.
+      for (let b = 0; b < ch.bones.length;) {
+        const rpx = rad[ch.bones[b]] * ppm;
+        let l = 0;
+        while (rpx > CAPSULE_LODS[l].maxPx) l++;
+        ch.lod = Math.max(ch.lod, l);
+        let e = b + 1;
+        while (e < ch.bones.length && rad[ch.bones[e]] * ppm > (l ? CAPSULE_LODS[l - 1].maxPx : -1)) e++;
+        const sec = this.sections[l];
+        const start = sec.start + (ch.slot + b) * sec.per, count = (e - b) * sec.per;
+        if (last && last.start + last.count === start) last.count += count;
+        else { geo.addGroup(start, count, 0); last = geo.groups[geo.groups.length - 1]; }
+        b = e;
+      }
+    }
+  }
+
+  dispose() {
+    this.mesh.geometry.dispose();
+    this.mesh.material[0].dispose();
+    this.texture.dispose();
+  }
+}
+
 // ------------------------------------------------------------------------------------------ character
+
+const SIDES = ['left', 'right'];
 
 class Character {
   constructor(spec, pos, contacts, world) {
@@ -133,6 +345,7 @@ class Character {
     const color = colorOf(spec.color);
     this.bones = [];
     for (let p = 0; p < this.P; p++) if (spec.parents[p] >= 0) this.bones.push(p);
+    this.bones.sort((a, b) => spec.radius[b] - spec.radius[a] || a - b);  // thickest first (levels of detail)
     // Joint radius: the largest radius of the bones meeting there, so cylinders and spheres make capsules.
     this.jr = new Float32Array(this.P);
     for (const p of this.bones) {
@@ -142,20 +355,16 @@ class Character {
       this.jr[par] = Math.max(this.jr[par], r);
     }
     for (let p = 0; p < this.P; p++) if (this.jr[p] === 0) this.jr[p] = 0.03;
-    const mat = world.software ? new THREE.MeshLambertMaterial({ color })
-      : new THREE.MeshStandardMaterial({ color, roughness: 0.55, metalness: 0.05 });
-    this.cyl = new THREE.InstancedMesh(world.cylGeo, mat, Math.max(this.bones.length, 1));
-    this.sph = new THREE.InstancedMesh(world.sphGeo, mat, this.P);
-    this.cyl.frustumCulled = false;
-    this.sph.frustumCulled = false;
-    this.group.add(this.cyl, this.sph);
+    // Capsule style: drawn by the scene's Bodies mesh (slot: this character's first bone there).
+    this.slot = 0;
     // Bone style: lines plus small joints.
     const lineGeo = new THREE.BufferGeometry();
     this.lineAttr = new THREE.BufferAttribute(new Float32Array(this.bones.length * 6), 3);
     lineGeo.setAttribute('position', this.lineAttr);
-    this.lines = new THREE.LineSegments(lineGeo, new THREE.LineBasicMaterial({ color: color.clone().multiplyScalar(0.7) }));
+    this.lines = new THREE.LineSegments(lineGeo,
+      displaySpace(new THREE.LineBasicMaterial({ color: color.clone().multiplyScalar(0.7) })));
     this.lines.frustumCulled = false;
-    this.dots = new THREE.InstancedMesh(world.sphGeo, new THREE.MeshBasicMaterial({ color }), this.P);
+    this.dots = new THREE.InstancedMesh(world.sphGeo, displaySpace(new THREE.MeshBasicMaterial({ color })), this.P);
     this.dots.frustumCulled = false;
     this.group.add(this.lines, this.dots);
     // Blob shadow.
@@ -180,7 +389,7 @@ class Character {
     }
     const tg = new THREE.BufferGeometry();
     tg.setAttribute('position', new THREE.BufferAttribute(tr, 3));
-    this.traj = new THREE.Line(tg, new THREE.LineBasicMaterial({ color, transparent: true, opacity: 0.75 }));
+    this.traj = new THREE.Line(tg, displaySpace(new THREE.LineBasicMaterial({ color, transparent: true, opacity: 0.75 })));
     this.traj.frustumCulled = false;
     this.group.add(this.traj);
     // Name label (HTML).
@@ -207,7 +416,6 @@ class Character {
     const o0 = i0 * P3, o1 = i1 * P3;
     for (let k = 0; k < P3; k++) cur[k] = pos[o0 + k] + a * (pos[o1 + k] - pos[o0 + k]);
     const capsules = opts.style === 'capsules';
-    this.cyl.visible = this.sph.visible = capsules;
     this.lines.visible = this.dots.visible = !capsules;
     let zmax = -Infinity, imax = 0;
     for (let p = 0; p < this.P; p++) {
@@ -215,32 +423,7 @@ class Character {
     }
     this.headTop.set(cur[3 * imax], cur[3 * imax + 1], zmax + 0.12);
     if (capsules) {
-      let n = 0;
-      for (const p of this.bones) {
-        const par = this.spec.parents[p];
-        _a.set(cur[3 * par], cur[3 * par + 1], cur[3 * par + 2]);
-        _b.set(cur[3 * p], cur[3 * p + 1], cur[3 * p + 2]);
-        _d.subVectors(_b, _a);
-        const len = _d.length();
-        const r = this.spec.radius[p];
-        if (len < 1e-5) { _s.set(0, 0, 0); _q.identity(); } else {
-          _q.setFromUnitVectors(Y_AXIS, _d.divideScalar(len));
-          _s.set(r, len, r);
-        }
-        _a.lerp(_b, 0.5);
-        _m.compose(_a, _q, _s);
-        this.cyl.setMatrixAt(n++, _m);
-      }
-      this.cyl.instanceMatrix.needsUpdate = true;
-      _q.identity();
-      for (let p = 0; p < this.P; p++) {
-        _a.set(cur[3 * p], cur[3 * p + 1], cur[3 * p + 2]);
-        const r = this.jr[p];
-        _s.set(r, r, r);
-        _m.compose(_a, _q, _s);
-        this.sph.setMatrixAt(p, _m);
-      }
-      this.sph.instanceMatrix.needsUpdate = true;
+      if (world.bodies) world.bodies.write(this, cur);
     } else {
       const la = this.lineAttr.array;
       let n = 0;
@@ -268,10 +451,11 @@ class Character {
     // Foot contacts.
     const feet = this.spec.feet || {};
     const showContacts = opts.contacts && this.contacts;
-    ['left', 'right'].forEach((side, bit) => {
+    for (let bit = 0; bit < 2; bit++) {
+      const side = SIDES[bit];
       const ring = this.rings[side];
       const idx = feet[side];
-      if (!showContacts || !idx || !idx.length) { ring.visible = false; return; }
+      if (!showContacts || !idx || !idx.length) { ring.visible = false; continue; }
       const on = (this.contacts[this.frame] >> bit) & 1;
       ring.visible = !!on;
       if (on) {
@@ -279,7 +463,7 @@ class Character {
         for (const p of idx) { x += cur[3 * p]; y += cur[3 * p + 1]; }
         ring.position.set(x / idx.length, y / idx.length, world.floor + 0.008);
       }
-    });
+    }
     this.traj.visible = !!opts.trajectories;
   }
 
@@ -304,6 +488,7 @@ class Viewer {
     Object.assign(this.opts, data.options || {});
     this.rafTimes = [];
     this.renderedFrames = 0;
+    this.pxPerMetre = (ch) => this.pxPerMetreAt(ch);
     this.played = 0;  // scene seconds played since the page opened (loops included)
     this.buildDom();
     this.buildThree();
@@ -362,19 +547,20 @@ class Viewer {
     this.scene.add(hemi, sun);
     // Shared geometries.
     this.world = {
-      cylGeo: new THREE.CylinderGeometry(1, 1, 1, 14, 1),
       sphGeo: new THREE.SphereGeometry(1, 16, 12),
       discGeo: new THREE.CircleGeometry(1, 32),
       ringGeo: new THREE.RingGeometry(0.07, 0.11, 28),
-      shadowMat: new THREE.MeshBasicMaterial({ color: 0x000000, transparent: true, opacity: 0.12, depthWrite: false }),
-      ringMat: new THREE.MeshBasicMaterial({ color: this.data.contactColor || '#f2b705', depthWrite: false,
-        side: THREE.DoubleSide }),
+      shadowMat: displaySpace(new THREE.MeshBasicMaterial({ color: 0x000000, transparent: true, opacity: 0.12,
+        depthWrite: false })),
+      ringMat: displaySpace(new THREE.MeshBasicMaterial({ color: this.data.contactColor || '#f2b705', depthWrite: false,
+        side: THREE.DoubleSide })),
+      bodies: null,
       labels: this.el.labels,
       floor: 0,
       software: this.software,
     };
     // Shared by every character and scene: never disposed.
-    this.shared = new Set([this.world.cylGeo, this.world.sphGeo, this.world.discGeo, this.world.ringGeo,
+    this.shared = new Set([this.world.sphGeo, this.world.discGeo, this.world.ringGeo,
       this.world.shadowMat, this.world.ringMat]);
     this.resize();
     new ResizeObserver(() => this.resize()).observe(wrap);
@@ -410,6 +596,8 @@ class Viewer {
       this.chars.push(ch);
       this.sceneGroup.add(ch.group);
     }
+    this.world.bodies = new Bodies(this.chars, this.software);
+    this.sceneGroup.add(this.world.bodies.mesh);
     this.buildGround();
     this.buildOverlays();
     this.buildLegend();
@@ -421,9 +609,11 @@ class Viewer {
   clearScene() {
     if (!this.sceneGroup) return;
     for (const ch of this.chars) ch.dispose();
+    if (this.world.bodies) this.world.bodies.dispose();
+    this.world.bodies = null;
     this.sceneGroup.traverse((o) => {
       if (o.geometry && !this.shared.has(o.geometry)) o.geometry.dispose();
-      if (o.material && !this.shared.has(o.material)) o.material.dispose();
+      for (const m of o.material ? [].concat(o.material) : []) if (!this.shared.has(m)) m.dispose();
     });
     this.scene.remove(this.sceneGroup);
     this.sceneGroup = null;
@@ -453,13 +643,11 @@ class Viewer {
     const size = 2 * Math.ceil((ext + 12) / 2);
     const floor = this.world.floor;
     const plane = new THREE.Mesh(new THREE.PlaneGeometry(size * 1.6, size * 1.6),
-      new THREE.MeshBasicMaterial({ color: 0xeeebe4 }));
+      displaySpace(new THREE.MeshBasicMaterial({ color: FLOOR_COLOR })));
     plane.position.set(cx, cy, floor - 0.001);
-    const grid = new THREE.GridHelper(size, size, 0x9aa3ad, 0xc4cad1);
-    grid.rotation.x = Math.PI / 2;  // GridHelper lies in XZ; the floor is XY (Z up)
+    const grid = makeGrid(size, 0x9aa3ad, 0xc4cad1, FLOOR_COLOR, 0.8);
     grid.position.set(cx, cy, floor + 0.001);
-    grid.material.transparent = true;
-    grid.material.opacity = 0.8;
+    grid.renderOrder = 1;  // after the floor
     // World axes at the origin: X red, Y green (short, on the floor).
     const axes = new THREE.Group();
     const ax = makeArrow(0xd62728), ay = makeArrow(0x2ca02c);
@@ -481,7 +669,8 @@ class Viewer {
       const len = Math.min(Math.max(0.25, mag * (spec.impulseScale || 0.02)), 1.2);
       const dir = mag > 1e-9 ? J.clone().divideScalar(mag) : new THREE.Vector3(1, 0, 0);
       setArrow(arrow, p.clone().addScaledVector(dir, -len), p, 0.014);
-      const dot = new THREE.Mesh(this.world.sphGeo, new THREE.MeshBasicMaterial({ color: im.color || '#d62728', transparent: true }));
+      const dot = new THREE.Mesh(this.world.sphGeo,
+        displaySpace(new THREE.MeshBasicMaterial({ color: im.color || '#d62728', transparent: true })));
       dot.position.copy(p);
       dot.scale.setScalar(0.045);
       const g = new THREE.Group();
@@ -494,7 +683,7 @@ class Viewer {
     for (const tr of spec.trajectories || []) {
       const g = new THREE.BufferGeometry();
       g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(tr.points), 3));
-      const line = new THREE.Line(g, new THREE.LineBasicMaterial({ color: tr.color || '#333333' }));
+      const line = new THREE.Line(g, displaySpace(new THREE.LineBasicMaterial({ color: tr.color || '#333333' })));
       line.frustumCulled = false;
       this.sceneGroup.add(line);
       this.extraTraj.push(line);
@@ -688,6 +877,23 @@ class Viewer {
   // -------------------------------------------------------------------- frame loop
   updateCharacters() {
     for (const ch of this.chars || []) ch.update(this.t, this.opts, this.world);
+    const bodies = this.world.bodies;
+    if (bodies) {
+      bodies.mesh.visible = this.opts.style === 'capsules';
+      if (bodies.mesh.visible) {
+        bodies.texture.needsUpdate = true;
+        bodies.setDetail(this.pxPerMetre);
+      }
+    }
+  }
+
+  // Pixels a metre on screen at a character's root (from the camera's last placement).
+  pxPerMetreAt(ch) {
+    const cam = this.camera, e = cam.matrixWorld.elements;
+    // Depth along the view direction (the camera looks down its -Z axis).
+    const depth = -((ch.cur[0] - e[12]) * e[8] + (ch.cur[1] - e[13]) * e[9] + (ch.cur[2] - e[14]) * e[10]);
+    const h = this.renderer.domElement.height;
+    return h / (2 * Math.tan(THREE.MathUtils.degToRad(cam.fov) / 2) * Math.max(depth, cam.near));
   }
 
   updateOverlays() {
