@@ -31,21 +31,30 @@ def _fk_kernel(root_pos, local_rot, trans, parents, gr, gp):  # pragma: no cover
         for c in range(3):
             gp[f, 0, c] = root_pos[f, c]
         for j in range(1, n_joints):
-            p = parents[j]
-            aw, ax, ay, az = gr[f, p, 0], gr[f, p, 1], gr[f, p, 2], gr[f, p, 3]
-            bw, bx, by, bz = local_rot[f, j, 0], local_rot[f, j, 1], local_rot[f, j, 2], local_rot[f, j, 3]
-            gr[f, j, 0] = aw * bw - ax * bx - ay * by - az * bz
-            gr[f, j, 1] = aw * bx + ax * bw + ay * bz - az * by
-            gr[f, j, 2] = aw * by - ax * bz + ay * bw + az * bx
-            gr[f, j, 3] = aw * bz + ax * by - ay * bx + az * bw
-            vx, vy, vz = trans[ft, j, 0], trans[ft, j, 1], trans[ft, j, 2]
-            # R(a) v = v + 2w (u x v) + 2 u x (u x v), with t = 2 (u x v)
-            tx = 2.0 * (ay * vz - az * vy)
-            ty = 2.0 * (az * vx - ax * vz)
-            tz = 2.0 * (ax * vy - ay * vx)
-            gp[f, j, 0] = gp[f, p, 0] + vx + aw * tx + (ay * tz - az * ty)
-            gp[f, j, 1] = gp[f, p, 1] + vy + aw * ty + (az * tx - ax * tz)
-            gp[f, j, 2] = gp[f, p, 2] + vz + aw * tz + (ax * ty - ay * tx)
+            fk_link(gr[f], gp[f], parents[j], j, local_rot[f, j], trans[ft, j])
+
+
+@numba.njit(cache=True, inline="always")
+def fk_link(gr, gp, p, j, q, v):  # pragma: no cover - compiled
+    """One forward-kinematics link, in place: ``gr[j] = gr[p] * q`` and ``gp[j] = gp[p] + R(gr[p]) v``.
+
+    For compiled kernels: ``gr (J, 4)`` and ``gp (J, 3)`` of one pose, ``q (4,)`` local rotation and
+    ``v (3,)`` local offset of joint ``j`` whose parent is ``p``.
+    """
+    aw, ax, ay, az = gr[p, 0], gr[p, 1], gr[p, 2], gr[p, 3]
+    bw, bx, by, bz = q[0], q[1], q[2], q[3]
+    gr[j, 0] = aw * bw - ax * bx - ay * by - az * bz
+    gr[j, 1] = aw * bx + ax * bw + ay * bz - az * by
+    gr[j, 2] = aw * by - ax * bz + ay * bw + az * bx
+    gr[j, 3] = aw * bz + ax * by - ay * bx + az * bw
+    vx, vy, vz = v[0], v[1], v[2]
+    # R(a) v = v + 2w (u x v) + 2 u x (u x v), with t = 2 (u x v)
+    tx = 2.0 * (ay * vz - az * vy)
+    ty = 2.0 * (az * vx - ax * vz)
+    tz = 2.0 * (ax * vy - ay * vx)
+    gp[j, 0] = gp[p, 0] + vx + aw * tx + (ay * tz - az * ty)
+    gp[j, 1] = gp[p, 1] + vy + aw * ty + (az * tx - ax * tz)
+    gp[j, 2] = gp[p, 2] + vz + aw * tz + (ax * ty - ay * tx)
 
 
 def fk_arrays(root_pos, local_rot, offsets, parents, translations=None) -> tuple[np.ndarray, np.ndarray]:

@@ -14,17 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinodyn._arrays import readonly
 from kinodyn.errors import MotionError, ParameterError
 from kinodyn.math import interp, quat, xform
 from kinodyn.skeleton import Skeleton
 
 __all__ = ["Motion"]
-
-
-def _readonly(a) -> np.ndarray:
-    a = np.array(a, dtype=np.float64, copy=True)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,8 +65,8 @@ class Motion:
             if np.any(norms < 1e-9):
                 raise MotionError("local_rot contains zero quaternions")
             lr = lr / norms[..., None]
-        object.__setattr__(self, "root_pos", _readonly(rp))
-        object.__setattr__(self, "local_rot", _readonly(lr))
+        object.__setattr__(self, "root_pos", readonly(rp))
+        object.__setattr__(self, "local_rot", readonly(lr))
         object.__setattr__(self, "fps", fps)
         if self.translations is not None:
             tr = np.asarray(self.translations, dtype=np.float64)
@@ -79,7 +74,7 @@ class Motion:
                 raise MotionError(f"translations must have shape ({f}, {j}, 3), got {tr.shape}")
             if not np.all(np.isfinite(tr)):
                 raise MotionError("translations have non-finite values")
-            object.__setattr__(self, "translations", _readonly(tr))
+            object.__setattr__(self, "translations", readonly(tr))
 
     # ------------------------------------------------------------------ basics
     @property

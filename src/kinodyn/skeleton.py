@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinodyn._arrays import readonly
 from kinodyn.errors import SkeletonError, UnknownNameError
 
 __all__ = ["Skeleton", "mirror_name"]
@@ -45,12 +46,6 @@ def mirror_name(name: str) -> str:
     if m:
         return ("r" if m.group(1) == "l" else "l") + m.group(2)
     return name
-
-
-def _readonly(a, dtype) -> np.ndarray:
-    a = np.array(a, dtype=dtype, copy=True)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,10 +103,10 @@ class Skeleton:
                 f"end_parents must be an int array of shape ({len(eo)},), got {ep.dtype} {ep.shape}")
         if len(ep) and (ep.min() < 0 or ep.max() >= j):
             raise SkeletonError(f"end_parents must index joints 0..{j - 1}")
-        object.__setattr__(self, "parents", _readonly(parents, np.int64))
-        object.__setattr__(self, "offsets", _readonly(offsets, np.float64))
-        object.__setattr__(self, "end_parents", _readonly(ep, np.int64))
-        object.__setattr__(self, "end_offsets", _readonly(eo, np.float64))
+        object.__setattr__(self, "parents", readonly(parents, np.int64))
+        object.__setattr__(self, "offsets", readonly(offsets, np.float64))
+        object.__setattr__(self, "end_parents", readonly(ep, np.int64))
+        object.__setattr__(self, "end_offsets", readonly(eo, np.float64))
 
     # ------------------------------------------------------------------ basics
     @property

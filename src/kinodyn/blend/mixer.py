@@ -44,6 +44,7 @@ from kinodyn.blend.phases import PhaseConfig, PhaseSequence
 from kinodyn.blend.sync import SyncConfig, Synchronizer
 from kinodyn.blend.timewarp import WarpConfig, WarpPlanner, eval_poly
 from kinodyn.errors import MotionError, ParameterError, UnknownNameError
+from kinodyn.kinematics import fk_link
 from kinodyn.math import quat, xform
 from kinodyn.motion import Motion
 from kinodyn.skeleton import Skeleton
@@ -347,27 +348,14 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was
     px = np.empty_like(pz)
     py = np.empty_like(pz)
     for n in range(n_chars):
-        # forward kinematics of the chain (the arithmetic of kinematics.fk_arrays)
+        # forward kinematics of the leg chains only
         for c in range(4):
             gr[n, 0, c] = q[n, 0, c]
         for c in range(3):
             gp[n, 0, c] = root[n, c]
         for i in range(chain.shape[0]):
             j = chain[i]
-            p = parents[j]
-            aw, ax, ay, az = gr[n, p, 0], gr[n, p, 1], gr[n, p, 2], gr[n, p, 3]
-            bw, bx, by, bz = q[n, j, 0], q[n, j, 1], q[n, j, 2], q[n, j, 3]
-            gr[n, j, 0] = aw * bw - ax * bx - ay * by - az * bz
-            gr[n, j, 1] = aw * bx + ax * bw + ay * bz - az * by
-            gr[n, j, 2] = aw * by - ax * bz + ay * bw + az * bx
-            gr[n, j, 3] = aw * bz + ax * by - ay * bx + az * bw
-            vx, vy, vz = offsets[j, 0], offsets[j, 1], offsets[j, 2]
-            tx = 2.0 * (ay * vz - az * vy)
-            ty = 2.0 * (az * vx - ax * vz)
-            tz = 2.0 * (ax * vy - ay * vx)
-            gp[n, j, 0] = gp[n, p, 0] + vx + aw * tx + (ay * tz - az * ty)
-            gp[n, j, 1] = gp[n, p, 1] + vy + aw * ty + (az * tx - ax * tz)
-            gp[n, j, 2] = gp[n, p, 2] + vz + aw * tz + (ax * ty - ay * tx)
+            fk_link(gr[n], gp[n], parents[j], j, q[n, j], offsets[j])
         mode = support[n]
         for s in range(2):
             m = 0
@@ -476,6 +464,17 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was
             need[n, s] = np.sqrt(dx * dx + dy * dy) > 1e-6
 
 
+@numba.njit(cache=True, inline="always")
+def _ramp(t, start, duration):  # pragma: no cover - compiled
+    """Smoothstep from 0 to 1 over ``[start, start + duration]``; 0 when ``start`` is not finite."""
+    if not np.isfinite(start):
+        return 0.0
+    if duration > 0:
+        x = min(max((t - start) / max(duration, 1e-12), 0.0), 1.0)
+        return x * x * (3.0 - 2.0 * x)
+    return 1.0 if t >= start else 0.0
+
+
 @numba.njit(cache=True)
 def _mix_weights_kernel(t, seg, speed, ramp, prio, h, tau, w, wn):  # pragma: no cover - compiled
     """Per character: action times ``h`` (the frozen warp segments), clip times ``tau``, activations and
@@ -491,22 +490,7 @@ def _mix_weights_kernel(t, seg, speed, ramp, prio, h, tau, w, wn):  # pragma: no
             hh = ((seg[n, s, 5] * u + seg[n, s, 4]) * u + seg[n, s, 3]) * u + seg[n, s, 2]
             h[n, s] = hh
             tau[n, s] = hh * speed[n, s]
-            on, ri, off, ro = ramp[n, s, 0], ramp[n, s, 1], ramp[n, s, 2], ramp[n, s, 3]
-            if not np.isfinite(on):
-                up = 0.0
-            elif ri > 0:
-                x = min(max((t - on) / max(ri, 1e-12), 0.0), 1.0)
-                up = x * x * (3.0 - 2.0 * x)
-            else:
-                up = 1.0 if t >= on else 0.0
-            if not np.isfinite(off):
-                down = 0.0
-            elif ro > 0:
-                x = min(max((t - off) / max(ro, 1e-12), 0.0), 1.0)
-                down = x * x * (3.0 - 2.0 * x)
-            else:
-                down = 1.0 if t >= off else 0.0
-            act[s] = up * (1.0 - down)
+            act[s] = _ramp(t, ramp[n, s, 0], ramp[n, s, 1]) * (1.0 - _ramp(t, ramp[n, s, 2], ramp[n, s, 3]))
         for s in range(n_slots):
             # two interleaved partial sums, the order of numpy's einsum over the level
             a0 = 0.0

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinodyn._arrays import readonly
 from kinodyn.errors import FileFormatError, MotionError, UnknownNameError
 from kinodyn.io.atomic import atomic_path
 from kinodyn.motion import Motion
@@ -23,12 +24,6 @@ from kinodyn.skeleton import Skeleton
 __all__ = ["ClipDatabase"]
 
 FORMAT = "kinodyn.clips/1"
-
-
-def _ro(a, dtype=np.float64) -> np.ndarray:
-    a = np.array(a, dtype=dtype, copy=True)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,10 +51,10 @@ class ClipDatabase:
 
     def __post_init__(self):
         n = len(self.local_rot)
-        object.__setattr__(self, "root_pos", _ro(self.root_pos))
-        object.__setattr__(self, "local_rot", _ro(self.local_rot))
-        object.__setattr__(self, "starts", _ro(self.starts, np.int64))
-        object.__setattr__(self, "stops", _ro(self.stops, np.int64))
+        object.__setattr__(self, "root_pos", readonly(self.root_pos))
+        object.__setattr__(self, "local_rot", readonly(self.local_rot))
+        object.__setattr__(self, "starts", readonly(self.starts, np.int64))
+        object.__setattr__(self, "stops", readonly(self.stops, np.int64))
         object.__setattr__(self, "names", tuple(self.names))
         object.__setattr__(self, "tags", tuple(tuple(t) for t in self.tags))
         k = len(self.names)

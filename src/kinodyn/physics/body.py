@@ -46,6 +46,7 @@ import mujoco
 import numpy as np
 
 from kinodyn import limits as _limits
+from kinodyn._arrays import readonly
 from kinodyn.errors import MotionError, ParameterError, SkeletonError, UnknownNameError
 from kinodyn.math import quat
 from kinodyn.skeleton import Skeleton
@@ -196,12 +197,6 @@ class Segment:
     axis: tuple[float, float, float]
     range: tuple[float, float]
     pos: tuple[float, float, float]
-
-
-def _ro(a, dtype) -> np.ndarray:
-    a = np.array(a, dtype=dtype, copy=True)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -543,14 +538,17 @@ def build_body(skeleton: Skeleton, config: BodyConfig | None = None, pd=None) ->
     qw = np.array([widths[s.kind][0] for s in seg])
     vw = np.array([widths[s.kind][1] for s in seg])
     cw = np.array([widths[s.kind][2] for s in seg])
+    def starts(widths):
+        return readonly(np.concatenate([[0], np.cumsum(widths)[:-1]]), np.int64)
+
     bmap = BodyMap(
-        skeleton=skeleton, segments=seg, joint_body=_ro(joint_body, np.int64), body_joint=_ro(body_joint, np.int64),
-        chains=tuple(chains), qpos_adr=_ro(np.concatenate([[0], np.cumsum(qw)[:-1]]), np.int64),
-        qpos_width=_ro(qw, np.int64), dof_adr=_ro(np.concatenate([[0], np.cumsum(vw)[:-1]]), np.int64),
-        dof_width=_ro(vw, np.int64), ctrl_adr=_ro(np.where(cw > 0, np.concatenate([[0], np.cumsum(cw)[:-1]]), -1),
-                                                   np.int64),
-        ctrl_width=_ro(cw, np.int64), actuated=_ro(np.nonzero(cw > 0)[0], np.int64), nq=int(qw.sum()),
-        nv=int(vw.sum()), nu=int(cw.sum()), feet=MappingProxyType(dict(feet)))
+        skeleton=skeleton, segments=seg, joint_body=readonly(joint_body, np.int64),
+        body_joint=readonly(body_joint, np.int64), chains=tuple(chains),
+        qpos_adr=starts(qw), qpos_width=readonly(qw, np.int64),
+        dof_adr=starts(vw), dof_width=readonly(vw, np.int64),
+        ctrl_adr=readonly(np.where(cw > 0, starts(cw), -1), np.int64), ctrl_width=readonly(cw, np.int64),
+        actuated=readonly(np.nonzero(cw > 0)[0], np.int64), nq=int(qw.sum()), nv=int(vw.sum()), nu=int(cw.sum()),
+        feet=MappingProxyType(dict(feet)))
     _check_layout(model, bmap)
 
     # actuators -----------------------------------------------------------
@@ -569,7 +567,7 @@ def build_body(skeleton: Skeleton, config: BodyConfig | None = None, pd=None) ->
             act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
             act.forcerange = [0.0, tmax] if s.kind == "ball" else [-tmax, tmax]
     tracking.set_joint_passives(spec, model, bmap, pd, cfg.armature)
-    return CharacterBody(spec=spec, map=bmap, config=cfg, kp=_ro(kp, np.float64), kv=_ro(kv, np.float64),
+    return CharacterBody(spec=spec, map=bmap, config=cfg, kp=readonly(kp, np.float64), kv=readonly(kv, np.float64),
                          total_mass=total, pd=pd)
 
 
