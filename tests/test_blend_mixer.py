@@ -157,23 +157,27 @@ def test_two_bone_ik_compiled_matches_numpy_and_reaches(lib):
     gr, gp = fk_arrays(root, q, sk.offsets, sk.parents)
     rng = np.random.default_rng(4)
     for leg in legs:
-        rows = np.arange(len(q))
-        c = gp[:, leg.ankle, :2]
-        d = rng.normal(0, 0.04, c.shape)
-        h = rng.uniform(-3, 3, len(q))
-        a = footlock.pin_feet(q, gr, gp, leg, rows, c + d, c, h)
-        b = footlock.pin_feet_fast(q.copy(), gr, gp, leg, rows, c + d, c, h)
-        assert quat.angle_between(a, b).max() < 1e-10
-        gr2, gp2 = fk_arrays(root, b, sk.offsets, sk.parents)
-        err = np.linalg.norm(gp2[:, leg.ankle, :2] - (c + d), axis=1)
-        t = gp[:, leg.ankle].copy()
-        t[:, :2] += d
-        length = (np.linalg.norm(gp[:, leg.knee] - gp[:, leg.hip], axis=1)
-                  + np.linalg.norm(gp[:, leg.ankle] - gp[:, leg.knee], axis=1))
-        reachable = np.linalg.norm(t - gp[:, leg.hip], axis=1) < 0.999 * length
-        assert reachable.sum() > 15
-        assert np.median(err[reachable]) < 1e-4 and err[reachable].max() < 2e-3   # reached within 2 mm
-        assert quat.angle_between(gr2[:, leg.ankle], gr[:, leg.ankle]).max() < 1e-9   # foot keeps its orientation
+        for raise_ankle in (False, True):   # dz: the pelvis came down by as much, the ankle goes back up
+            rows = np.arange(len(q))
+            c = gp[:, leg.ankle, :2]
+            d = rng.normal(0, 0.04, c.shape)
+            h = rng.uniform(-3, 3, len(q))
+            dz = rng.uniform(0.0, 0.05, len(q)) if raise_ankle else None
+            a = footlock.pin_feet(q, gr, gp, leg, rows, c + d, c, h, dz=dz)
+            b = footlock.pin_feet_fast(q.copy(), gr, gp, leg, rows, c + d, c, h, dz=dz)
+            assert quat.angle_between(a, b).max() < 1e-10
+            gr2, gp2 = fk_arrays(root, b, sk.offsets, sk.parents)
+            t = gp[:, leg.ankle].copy()
+            t[:, :2] += d
+            if dz is not None:
+                t[:, 2] += dz
+            err = np.linalg.norm(gp2[:, leg.ankle] - t, axis=1)
+            length = (np.linalg.norm(gp[:, leg.knee] - gp[:, leg.hip], axis=1)
+                      + np.linalg.norm(gp[:, leg.ankle] - gp[:, leg.knee], axis=1))
+            reachable = np.linalg.norm(t - gp[:, leg.hip], axis=1) < 0.999 * length
+            assert reachable.sum() > 15
+            assert np.median(err[reachable]) < 1e-4 and err[reachable].max() < 2e-3   # reached within 2 mm
+            assert quat.angle_between(gr2[:, leg.ankle], gr[:, leg.ankle]).max() < 1e-9   # foot keeps its orientation
 
 
 def test_constraints_hold_a_planted_foot_through_a_blend(lib):
@@ -275,25 +279,111 @@ def _crowd_poses(lib, compiled: bool, synchronize: bool = True, n: int = 6, fram
 @pytest.mark.parametrize("synchronize", [True, False])
 def test_compiled_mixer_matches_numpy_reference(synchronize):
     """The compiled per-frame path (weights, support constraints) gives the poses of the numpy
-    reference path, and those of the mixer before it was optimized (values stored from it)."""
+    reference path, and the stored root positions of that reference (a change of behaviour must update
+    them knowingly)."""
     lib = ClipLibrary.builtin(["idle", "walk", "run", "punch", "kick", "jump"])
     r_fast, q_fast = _crowd_poses(lib, True, synchronize)
     r_ref, q_ref = _crowd_poses(lib, False, synchronize)
     np.testing.assert_allclose(r_fast, r_ref, atol=_TOL, rtol=0, err_msg="root")
     np.testing.assert_allclose(q_fast, q_ref, atol=_TOL, rtol=0, err_msg="rotations")
     if synchronize:
-        stored = [[0.0, 0.0, 0.989644181], [0.0, 0.0, 0.989643308], [1.501001129, 0.158754128, 0.930940561],
-                  [3.072134431, 0.334832778, 0.922517688], [2.148650728, 0.28913255, 0.824695885]]
+        stored = [[0.0, 0.0, 0.989644181], [0.0, 0.0, 0.989643308], [1.497719604, 0.157468841, 0.930940561],
+                  [3.07158376, 0.33472448, 0.922517688], [2.487395003, 0.270758749, 0.824695722]]
         np.testing.assert_allclose(r_fast[::60].reshape(-1, 3)[::5], stored, atol=2e-9, rtol=0, err_msg="stored")
 
 
-def test_figure_script_matches_the_mixer_before_optimization():
-    """Root path of the figure 12/13 script, every 150 frames, as the unoptimized mixer produced it."""
+def test_figure_script_matches_the_stored_root_path():
+    """Root path of the figure 12/13 script, every 150 frames, as stored (a regression guard for
+    optimizations; a change of behaviour must update it knowingly)."""
     from kinodyn.blend.demo import transition_script
     from kinodyn.blend.script import run_script
 
     root = run_script(transition_script()).motion.root_pos[::150]
-    stored = [[0.0, 0.0, 0.99], [3.209621476, 0.067308041, 0.921696672], [9.588055559, 0.589363276, 0.910800908],
-              [15.703361232, 1.068200407, 0.917262961], [17.406645219, 1.16677151, 0.956226661],
-              [20.039338035, 1.105812193, 0.947019007], [20.045284596, 1.108124823, 0.99]]
+    stored = [[0.0, 0.0, 0.99], [3.206096067, 0.066211728, 0.921690863], [9.625124723, 0.585416705, 0.903117196],
+              [15.743968783, 1.070073884, 0.917116921], [17.523239922, 1.169851838, 0.953304417],
+              [20.49797264, 1.159822971, 0.967000427], [20.501038762, 1.161950055, 0.99]]
     np.testing.assert_allclose(root, stored, atol=2e-9, rtol=0)
+
+
+def test_a_cyclic_clip_that_misses_its_loop_point_is_closed():
+    """A captured cycle whose last frame misses its first by a few degrees and centimetres loops without
+    a jump: the mismatch is spread over the clip (half off the first frame, half onto the last)."""
+    from kinodyn.blend.mixer import _close_loop
+    from kinodyn.data import library as L
+
+    walk = L.load("walk")
+    rng = np.random.default_rng(3)
+    rot = np.array(walk.local_rot)
+    n = len(rot)
+    bend = quat.from_rotvec(rng.normal(0.0, 0.05, (walk.skeleton.num_joints, 3)))   # about 4 degrees
+    ramp = np.linspace(0.0, 1.0, n)[:, None]
+    rot = quat.mul(rot, quat.slerp(quat.identity((1, walk.skeleton.num_joints)), bend[None], ramp))
+    z = np.array(walk.root_pos[:, 2]) + 0.03 * np.linspace(0.0, 1.0, n)
+    closed, zc = _close_loop(rot, z)
+    assert quat.angle_between(closed[-1], closed[0]).max() < 1e-9
+    assert zc[-1] == pytest.approx(zc[0], abs=1e-12)
+    # the correction is spread: no frame moves by more than half the mismatch, neighbours stay close
+    assert quat.angle_between(closed, rot).max() <= 0.5 * quat.angle(bend).max() + 1e-9
+    step = quat.angle_between(closed[1:], closed[:-1]).max()
+    assert step < quat.angle_between(rot[1:], rot[:-1]).max() + quat.angle(bend).max() / (n - 1) + 1e-9
+    # a seamless clip is left as it is
+    same, zs = _close_loop(np.array(walk.local_rot), np.array(walk.root_pos[:, 2]))
+    assert quat.angle_between(same, walk.local_rot).max() < 1e-6
+    np.testing.assert_allclose(zs, walk.root_pos[:, 2], atol=1e-6)
+
+
+def test_a_stop_waits_for_the_action_that_replaces_it(lib):
+    """Stopping the walk while the kick waits for its synchronized start hands over: the walk plays on
+    at full weight until the kick starts (the neutral pose does not fill the wait), then fades out."""
+    mx = Mixer(lib, 1, BlendConfig(), record=True)
+    mx.start("walk", key="w", priority=1)
+    for _ in range(60):
+        mx.step(1 / 60)
+    mx.start("kick", key="k", priority=2)
+    mx.stop("w")
+    assert mx.chars[0].actions["k"].t_on is None and mx.chars[0].actions["w"].t_off is None  # waiting
+    for _ in range(120):
+        mx.step(1 / 60)
+    k, w = mx.chars[0].history["k"], mx.chars[0].history["w"]
+    assert k.t_on is not None and k.t_on > 1.0 + 1e-6     # the kick did wait for a step boundary
+    assert w.t_off == pytest.approx(k.t_on)                # and the walk faded out from then on
+    rec = mx.recordings[0].arrays()
+    wait = (rec["t"] > 1.0) & (rec["t"] <= k.t_on)
+    assert wait.sum() >= 3 and np.max(rec["neutral"][wait]) < 1e-9
+    np.testing.assert_allclose(rec["w"][1][wait], 1.0, atol=1e-9)
+
+
+def test_the_pelvis_lowers_to_keep_a_held_foot_within_reach(lib):
+    """Held feet at a stance change: the pelvis comes down (within max_pelvis_drop, at a bounded speed)
+    instead of letting a straight leg's foot slide; with max_pelvis_drop=0 it never moves down."""
+    def run(cfg):
+        mx = Mixer(lib, 1, cfg)
+        mx.start("walk", key="w", priority=1)
+        drops = []
+        for f in range(240):
+            if f == 100:
+                mx.start("kick", key="k", priority=2)
+                mx.stop("w")
+            mx.step(1 / 60)
+            drops.append(float(mx._drop[0]))
+        return np.array(drops)
+
+    cfg = BlendConfig()
+    drops = run(cfg)
+    assert drops.max() > 0.005 and drops.max() <= cfg.max_pelvis_drop + 1e-12
+    assert np.diff(drops).max() <= cfg.max_pelvis_drop / 60 / 0.2 + 1e-12
+    assert run(BlendConfig(max_pelvis_drop=0.0)).max() == 0.0
+    with pytest.raises(ParameterError, match="max_pelvis_drop"):
+        BlendConfig(max_pelvis_drop=-0.01)
+
+
+def test_the_root_follows_the_feet_without_jumps():
+    """The root follows each held foot by the share of the weight it carries (passed over the double
+    supports), so it never jumps when a foot lifts: the largest horizontal acceleration of the root in
+    the figure 12/13 script stays that of a walking body."""
+    from kinodyn.blend.demo import transition_script
+    from kinodyn.blend.script import run_script
+
+    m = run_script(transition_script()).motion
+    acc = np.linalg.norm(np.diff(m.root_pos[:, :2], 2, axis=0), axis=1) * m.fps ** 2
+    assert acc.max() < 40.0, acc.max()   # m/s^2; a support change that moved the root at once gave 300

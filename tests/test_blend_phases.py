@@ -184,3 +184,26 @@ def test_builtin_clips_have_the_expected_cycles():
     assert set(run.names()) == {"LS", "RS", "FLIGHT"}
     assert P.from_motion(L.load("jump")).names() == ["DS", "FLIGHT", "DS"]
     assert P.from_motion(L.load("idle"), cyclic=True).names() == ["DS"]
+
+
+def test_left_share_passes_the_weight_over_double_supports():
+    """1 on the left single support, 0 on the right one, linear over the double support between them;
+    a double support between two steps of the same foot keeps that foot's share."""
+    seq = P.PhaseSequence(np.array([RS, DS, LS, DS, LS], dtype=np.int8), np.array([0.4, 0.2, 0.4, 0.1, 0.3]))
+    t = np.array([0.1, 0.4, 0.45, 0.5, 0.55, 0.6, 0.8, 1.05, 1.2, 5.0])
+    np.testing.assert_allclose(seq.left_share(t), [0.0, 0.0, 0.25, 0.5, 0.75, 1.0, 1.0, 1.0, 1.0, 1.0], atol=1e-12)
+    # ends of a non-cyclic clip: an unknown neighbour counts as one half
+    ends = P.PhaseSequence(np.array([DS, RS, DS], dtype=np.int8), np.array([0.2, 0.4, 0.2]))
+    np.testing.assert_allclose(ends.left_share([0.0, 0.1, 0.2, 0.7, 0.8, 3.0]), [0.5, 0.25, 0.0, 0.25, 0.5, 0.5],
+                               atol=1e-12)
+
+
+def test_left_share_of_a_cyclic_sequence_wraps_and_is_continuous():
+    seq = P.PhaseSequence(np.array([DS, LS, DS, RS], dtype=np.int8), np.array([0.1, 0.4, 0.1, 0.4]), cyclic=True,
+                          start=-0.05)
+    t = np.linspace(-3.0, 3.0, 6001)
+    share = seq.left_share(t)
+    assert share.min() == 0.0 and share.max() == 1.0
+    assert np.abs(np.diff(share)).max() < 0.011   # linear ramps of 0.1 s sampled every 1 ms
+    np.testing.assert_allclose(seq.left_share(t + seq.total), share, atol=1e-9)
+    assert seq.left_share(0.0) == pytest.approx(0.5)   # middle of the DS from RS to LS (it straddles 0)

@@ -4,11 +4,17 @@ Synchronization (:mod:`kinodyn.blend.sync`) leaves every instant with actions th
 carry the body; this module makes the blended pose respect that support, the role the paper's engine
 gives to kinematic constraints computed after blending (its section 3). A foot is *planted* when the
 weights of the actions whose current phase puts it down (``RS``: right, ``LS``: left, ``DS``: both; the
-neutral pose: both) add up to at least one half. The root's horizontal position follows the *primary*
-planted foot (the one more actions agree on, else the one planted first), and a second planted foot is
-pinned by two-bone inverse kinematics of its leg (hip, knee, ankle), keeping the foot's world
-orientation. Each planted foot is held at the position its lowest point had when it was planted (or
-when the lowest point moved from heel to toe).
+neutral pose: both) add up to at least one half. Each planted foot is held at the position its lowest
+point had when it was planted (or when the lowest point moved from heel to toe).
+
+The root's horizontal position follows the held feet, each by the share of the body's weight it
+carries: all of it on a single support, passed linearly from the old support foot to the new one over a
+double support, as the actions' sequences say
+(:meth:`~kinodyn.blend.phases.PhaseSequence.left_share`), and faded out as a foot's vote nears one
+half. So the root never jumps when a foot lifts or lands. Two-bone inverse kinematics of each leg (hip,
+knee, ankle) then puts the feet where they are held, keeping each foot's world orientation; when a held
+foot is beyond a straight leg's reach (the back foot at push-off) the pelvis comes down a little, and
+beyond that the foot follows the pose.
 
 The two-bone solver is the analytic one of Daniel Holden's Motion-Matching code (``ik_two_bone``),
 batch-first and skeleton-agnostic: it works on world positions and rotations from forward kinematics.
@@ -105,8 +111,9 @@ def two_bone_ik(a, b, c, t, a_gr, b_gr, fallback_axis, eps: float = 1e-5):
     return quat.mul(r0, r2), r1
 
 
-def pin_feet(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading):
-    """Move the ankle of ``leg`` horizontally by ``target_xy - lowest_xy`` for poses ``rows``.
+def pin_feet(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading, dz=None):
+    """Move the ankle of ``leg`` horizontally by ``target_xy - lowest_xy`` (and up by ``dz``) for poses
+    ``rows``.
 
     Args:
         q: ``(N, J, 4)`` local rotations (modified copy returned).
@@ -115,6 +122,7 @@ def pin_feet(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading):
         rows: ``(M,)`` indices of the poses to change.
         target_xy, lowest_xy: ``(M, 2)`` where the foot's lowest point must be and where it is.
         heading: ``(M,)`` character headings (their lateral axis bends a straight knee).
+        dz: ``(M,)`` metres to raise the ankle (the pelvis was lowered by as much), default 0.
 
     Returns:
         The new local rotations ``(N, J, 4)``; the foot keeps its world orientation.
@@ -125,6 +133,8 @@ def pin_feet(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading):
     a, b, c = gp[rows, leg.hip], gp[rows, leg.knee], gp[rows, leg.ankle]
     t = c.copy()
     t[:, :2] += target_xy - lowest_xy
+    if dz is not None:
+        t[:, 2] += dz
     lateral = np.stack([-np.sin(heading), np.cos(heading), np.zeros_like(heading)], axis=-1)
     da, db = two_bone_ik(a, b, c, t, gr[rows, leg.hip], gr[rows, leg.knee], lateral)
     hip_l = quat.mul(q[rows, leg.hip], da)
@@ -181,7 +191,7 @@ def _acos(x):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _pin_kernel(q, gr, gp, hip, knee, ankle, rows, target_xy, lowest_xy, heading, eps):  # pragma: no cover
+def _pin_kernel(q, gr, gp, hip, knee, ankle, rows, target_xy, lowest_xy, heading, dz, eps):  # pragma: no cover
     for m in range(rows.shape[0]):
         n = rows[m]
         ax, ay, az = gp[n, hip, 0], gp[n, hip, 1], gp[n, hip, 2]
@@ -189,7 +199,7 @@ def _pin_kernel(q, gr, gp, hip, knee, ankle, rows, target_xy, lowest_xy, heading
         cx, cy, cz = gp[n, ankle, 0], gp[n, ankle, 1], gp[n, ankle, 2]
         tx = cx + target_xy[m, 0] - lowest_xy[m, 0]
         ty = cy + target_xy[m, 1] - lowest_xy[m, 1]
-        tz = cz
+        tz = cz + dz[m]
         lab = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
         lcb = np.sqrt((bx - cx) ** 2 + (by - cy) ** 2 + (bz - cz) ** 2)
         lat = np.sqrt((tx - ax) ** 2 + (ty - ay) ** 2 + (tz - az) ** 2)
@@ -238,10 +248,11 @@ def _pin_kernel(q, gr, gp, hip, knee, ankle, rows, target_xy, lowest_xy, heading
             q[n, ankle, c] = fl[c]
 
 
-def pin_feet_fast(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading, eps: float = 1e-5):
+def pin_feet_fast(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading, eps: float = 1e-5, dz=None):
     """Compiled :func:`pin_feet` (same result); modifies ``q`` in place and returns it."""
     if len(rows):
+        dz = np.zeros(len(rows)) if dz is None else np.broadcast_to(np.asarray(dz, dtype=np.float64), (len(rows),))
         _pin_kernel(q, gr, gp, leg.hip, leg.knee, leg.ankle, np.ascontiguousarray(rows, dtype=np.int64),
                     np.ascontiguousarray(target_xy, dtype=np.float64), np.ascontiguousarray(lowest_xy, dtype=np.float64),
-                    np.ascontiguousarray(heading, dtype=np.float64), eps)
+                    np.ascontiguousarray(heading, dtype=np.float64), np.ascontiguousarray(dz), eps)
     return q

@@ -13,8 +13,9 @@ activation.
 With ``synchronize=True`` every character runs a :class:`~kinodyn.blend.sync.Synchronizer` and a
 :class:`~kinodyn.blend.timewarp.WarpPlanner`: actions start at a step boundary, their support phases
 are organized so that no step mixes a left and a right single support, and each action's time is
-warped to the common steps. With ``synchronize=False`` (the baseline) actions start when asked and
-play at their own speed.
+warped to the common steps. An action stopped while another waits for its synchronized start hands
+over: it plays on until the newcomer starts, then fades out. With ``synchronize=False`` (the baseline)
+actions start when asked and play at their own speed.
 
 Blending: local joint rotations are averaged with the weights (normalized weighted sum of
 hemisphere-aligned quaternions, or Markley's eigenvector mean); the root is blended in each action's
@@ -80,17 +81,19 @@ class BlendConfig:
         max_actions: action slots per character (actions playing or fading at once).
         average: ``"nlerp"`` (normalized weighted sum, fast) or ``"markley"`` (eigenvector mean).
         constraints: enforce the support after blending (:mod:`kinodyn.blend.footlock`): planted feet
-            stay where they landed (root follows the primary planted foot, two-bone IK pins the
-            other). ``"auto"``: on with synchronization, off without (without synchronization the
+            stay where they landed (the root follows the held feet by the weight each carries,
+            two-bone IK pins them). ``"auto"``: on with synchronization, off without (without synchronization the
             actions disagree on which foot carries the body, so there is no single constraint to
             enforce); ``"on"`` / ``"off"`` force it.
-        root_halflife: seconds for the root to follow the primary planted foot (IK pins the feet in
+        root_halflife: seconds for the root to follow the held feet (IK pins the feet in
             the meantime; a short halflife keeps the legs natural, a non-zero one keeps the root
             smooth when the support changes foot).
         release_halflife: seconds over which a lifted foot's IK correction fades out.
         max_foot_offset: metres a planted foot may be held away from where the blended pose puts it;
             beyond that, or beyond what the leg reaches, it follows the pose (it slides) instead of
             stretching the leg.
+        max_pelvis_drop: metres the pelvis may come down so that a planted foot stays within its leg's
+            reach (a straight back leg at push-off); 0 never lowers it.
     """
 
     synchronize: bool = True
@@ -104,6 +107,7 @@ class BlendConfig:
     root_halflife: float = 0.04
     release_halflife: float = 0.05
     max_foot_offset: float = 0.5
+    max_pelvis_drop: float = 0.05
 
     @property
     def enforce(self) -> bool:
@@ -121,7 +125,7 @@ class BlendConfig:
             raise ParameterError(f"constraints must be 'auto', 'on' or 'off', got {self.constraints!r}")
         if not (np.isfinite(self.max_foot_offset) and self.max_foot_offset > 0):
             raise ParameterError(f"max_foot_offset must be a positive number of metres, got {self.max_foot_offset}")
-        for name in ("root_halflife", "release_halflife"):
+        for name in ("root_halflife", "release_halflife", "max_pelvis_drop"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ParameterError(f"{name} must be a non-negative number of seconds, got {v}")
@@ -306,8 +310,9 @@ def _blend_kernel(rot_db, i0, a, w, ref, wref, out):  # pragma: no cover - compi
 
 
 @numba.njit(cache=True)
-def _support_kernel(w, wn, phase, support, planted):  # pragma: no cover - compiled
-    """Planted feet and the primary support of every character (the first part of ``_constrain``)."""
+def _support_kernel(w, wn, phase, left, support, planted, vote):  # pragma: no cover - compiled
+    """Planted feet, their votes and the foot carrying most weight of every character (the first part of
+    ``_constrain``)."""
     n_chars, n_slots = w.shape
     for n in range(n_chars):
         sl = 0.0
@@ -316,29 +321,33 @@ def _support_kernel(w, wn, phase, support, planted):  # pragma: no cover - compi
             p = phase[n, k]
             sl += w[n, k] if (p == 2 or p == 0) else 0.0   # LS or DS put the left foot down
             sr += w[n, k] if (p == 1 or p == 0) else 0.0   # RS or DS put the right foot down
-        pl = sl + wn[n] >= 0.5
-        pr = sr + wn[n] >= 0.5
+        vote[n, 0] = sl + wn[n]
+        vote[n, 1] = sr + wn[n]
+        pl = vote[n, 0] >= 0.5
+        pr = vote[n, 1] >= 0.5
         planted[n, 0] = pl
         planted[n, 1] = pr
-        prev = support[n]
         if pl and pr:
-            if abs(sl - sr) < 1e-6:
-                mode = prev if ((prev == 1 and pl) or (prev == 2 and pr)) else 3
-            else:
-                mode = 1 if sl > sr else 2
+            support[n] = 1 if left[n] >= 0.5 else 2
         elif pl:
-            mode = 1
+            support[n] = 1
         elif pr:
-            mode = 2
+            support[n] = 2
         else:
-            mode = 0
-        support[n] = mode
+            support[n] = 0
+
+
+#: Fraction of a leg's length up to which the pelvis lowers to keep a held foot within reach (a knee
+#: that stays slightly bent keeps the two-bone solution well conditioned).
+_REACH_MARGIN = 0.995
+#: Seconds the pelvis takes at least to come down by ``max_pelvis_drop`` (no sudden crouch).
+_DROP_TIME = 0.2
 
 
 @numba.njit(cache=True)
-def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was_planted, foot_pt, foot_xy, release,
-                 leg_joints, n_joints, end_par, end_off, n_ends, hips, ankles, reach, alpha, decay, lim, target, xy,
-                 need):  # pragma: no cover - compiled
+def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, was_planted, foot_pt, foot_xy, release,
+                 drop, leg_joints, n_joints, end_par, end_off, n_ends, hips, ankles, reach, alpha, decay, lim,
+                 max_drop, rise, target, xy, need):  # pragma: no cover - compiled
     """Where each foot is held and how far the root follows (the middle part of ``_constrain``, one pass
     per character). Forward kinematics fills ``gr``, ``gp`` for the joints of ``chain`` (the root, the legs
     and their ancestors, parents first) only; ``root``, ``gp``, ``foot_pt``, ``foot_xy``, ``release`` are
@@ -356,7 +365,6 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was
         for i in range(chain.shape[0]):
             j = chain[i]
             fk_link(gr[n], gp[n], parents[j], j, q[n, j], offsets[j])
-        mode = support[n]
         for s in range(2):
             m = 0
             for i in range(n_joints[s]):
@@ -388,25 +396,16 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was
                 foot_xy[n, s, 0] = xy[n, s, 0] + foot_xy[n, s, 0] - px[old]
                 foot_xy[n, s, 1] = xy[n, s, 1] + foot_xy[n, s, 1] - py[old]
             foot_pt[n, s] = idx if planted[n, s] else -1
-        # the primary planted foot (or both) pulls the root toward where it is held
-        prim0 = planted[n, 0] and not was_planted[n, 0] and (mode == 1 or mode == 3)
-        prim1 = planted[n, 1] and not was_planted[n, 1] and (mode == 2 or mode == 3)
-        if prim0:
-            foot_xy[n, 0, 0] = xy[n, 0, 0]
-            foot_xy[n, 0, 1] = xy[n, 0, 1]
-        if prim1:
-            foot_xy[n, 1, 0] = xy[n, 1, 0]
-            foot_xy[n, 1, 1] = xy[n, 1, 1]
-        ex0, ey0 = foot_xy[n, 0, 0] - xy[n, 0, 0], foot_xy[n, 0, 1] - xy[n, 0, 1]
-        ex1, ey1 = foot_xy[n, 1, 0] - xy[n, 1, 0], foot_xy[n, 1, 1] - xy[n, 1, 1]
-        if mode == 1:
-            gx, gy = ex0, ey0
-        elif mode == 2:
-            gx, gy = ex1, ey1
-        elif mode == 3:
-            gx, gy = 0.5 * (ex0 + ex1), 0.5 * (ey0 + ey1)
-        else:
-            gx, gy = 0.0, 0.0
+        # feet planted now are held where they are; the planted feet pull the root toward where they are
+        # held, each by the share of the weight it carries, faded out as its vote nears one half
+        for s in range(2):
+            if planted[n, s] and not was_planted[n, s]:
+                foot_xy[n, s, 0] = xy[n, s, 0]
+                foot_xy[n, s, 1] = xy[n, s, 1]
+        b0 = left[n] * min(max((vote[n, 0] - 0.5) * 4.0, 0.0), 1.0) if planted[n, 0] else 0.0
+        b1 = (1.0 - left[n]) * min(max((vote[n, 1] - 0.5) * 4.0, 0.0), 1.0) if planted[n, 1] else 0.0
+        gx = b0 * (foot_xy[n, 0, 0] - xy[n, 0, 0]) + b1 * (foot_xy[n, 1, 0] - xy[n, 1, 0])
+        gy = b0 * (foot_xy[n, 0, 1] - xy[n, 0, 1]) + b1 * (foot_xy[n, 1, 1] - xy[n, 1, 1])
         sx, sy = alpha * gx, alpha * gy
         root[n, 0] += sx
         root[n, 1] += sy
@@ -415,14 +414,11 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was
         for i in range(chain.shape[0]):
             gp[n, chain[i], 0] += sx
             gp[n, chain[i], 1] += sy
+        need_drop = 0.0
         for s in range(2):
             xy[n, s, 0] += sx
             xy[n, s, 1] += sy
             pl = planted[n, s]
-            # secondary feet planted now are held where they are after the root moved
-            if pl and not was_planted[n, s] and not (prim0 if s == 0 else prim1):
-                foot_xy[n, s, 0] = xy[n, s, 0]
-                foot_xy[n, s, 1] = xy[n, s, 1]
             # a foot that lifts off keeps the IK offset it had and lets it go smoothly (no pop)
             if pl:
                 release[n, s, 0] = 0.0
@@ -433,15 +429,32 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was
             else:
                 release[n, s, 0] *= decay
                 release[n, s, 1] *= decay
+            if pl and max_drop > 0.0:
+                # how far the pelvis must come down for the leg to reach where the foot is held
+                h, a = hips[s], ankles[s]
+                hx = gp[n, a, 0] + foot_xy[n, s, 0] - xy[n, s, 0] - gp[n, h, 0]
+                hy = gp[n, a, 1] + foot_xy[n, s, 1] - xy[n, s, 1] - gp[n, h, 1]
+                lr = _REACH_MARGIN * reach[s]
+                hd2 = hx * hx + hy * hy
+                v = gp[n, h, 2] - gp[n, a, 2]
+                need_drop = max(need_drop, v - np.sqrt(lr * lr - hd2) if hd2 < lr * lr else max_drop)
+        # the pelvis comes down (at a bounded speed) when a held foot needs it, and back up smoothly
+        dz = max(min(need_drop, max_drop, drop[n] + rise), drop[n] * decay)
+        drop[n] = dz
+        if dz > 0.0:
+            root[n, 2] -= dz
+            for i in range(chain.shape[0]):
+                gp[n, chain[i], 2] -= dz
+        for s in range(2):
             ox = foot_xy[n, s, 0] - xy[n, s, 0]
             oy = foot_xy[n, s, 1] - xy[n, s, 1]
-            if pl:
+            if planted[n, s]:
                 # a planted foot never strays more than `lim` from where the blend puts it, nor further
                 # than the leg reaches (see _constrain_reference)
                 dist = np.sqrt(ox * ox + oy * oy)
                 scale = lim / max(dist, 1e-12) if dist > lim else 1.0
                 h, a = hips[s], ankles[s]
-                e0, e1, e2 = gp[n, a, 0] - gp[n, h, 0], gp[n, a, 1] - gp[n, h, 1], gp[n, a, 2] - gp[n, h, 2]
+                e0, e1, e2 = gp[n, a, 0] - gp[n, h, 0], gp[n, a, 1] - gp[n, h, 1], gp[n, a, 2] + dz - gp[n, h, 2]
                 ee = e0 * e0 + e1 * e1 + e2 * e2
                 r = max(reach[s], np.sqrt(ee))
                 d0, d1 = ox * scale, oy * scale
@@ -461,7 +474,7 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, was
                 target[n, s, 1] = xy[n, s, 1] + release[n, s, 1]
             dx = target[n, s, 0] - xy[n, s, 0]
             dy = target[n, s, 1] - xy[n, s, 1]
-            need[n, s] = np.sqrt(dx * dx + dy * dy) > 1e-6
+            need[n, s] = dz > 0.0 or np.sqrt(dx * dx + dy * dy) > 1e-6
 
 
 @numba.njit(cache=True, inline="always")
@@ -546,6 +559,18 @@ def blend_frames_fast(rot_db, i0, a, w, ref, wref) -> np.ndarray:
 # ----------------------------------------------------------------------------------------- library
 
 
+def _close_loop(rot, z):
+    """Make a cyclic clip seamless: its last frame must equal its first, which captured cycles only
+    approximate (a few degrees and centimetres apart). The mismatch of every joint rotation ``rot
+    (F, J, 4)`` (facing frame) and of the root height ``z (F,)`` is spread linearly over the clip, half
+    taken off the first frame and half added to the last, so the loop point no longer jumps."""
+    n = len(z)
+    s = np.arange(n) / (n - 1) - 0.5
+    d = quat.inv_mul(rot[-1], rot[0])
+    rot = quat.mul(rot, quat.exp(s[:, None, None] * quat.log(d)[None]))
+    return rot, z + s * (z[0] - z[-1])
+
+
 class ClipLibrary:
     """Clips packed for batched sampling, each with its support-phase sequence.
 
@@ -579,7 +604,8 @@ class ClipLibrary:
         Args:
             name: unique name.
             motion: the clip (any fps; same joint names and parents as the library's skeleton).
-            cyclic: the clip loops (its last frame equals its first up to the root's floor position).
+            cyclic: the clip loops: its last frame is its first again, up to the root's floor position
+                (a captured cycle that misses by a little is closed, see :func:`_close_loop`).
             sequence: its support-phase sequence; detected from foot contacts when ``None``.
             feet: foot joints for contact detection (see :func:`kinodyn.contacts.find_feet`).
         """
@@ -603,6 +629,9 @@ class ClipLibrary:
         lr = np.array(lr)
         lr[:, 0] = quat.inv_mul(quat.from_heading(g[:, 2]), lr[:, 0])
         lr = quat.unroll(lr)
+        z = np.array(motion.root_pos[:, 2])
+        if cyclic:
+            lr, z = _close_loop(lr, z)
         # one loop of a cyclic clip moves the whole clip by `loop` (world frame, applied on the left):
         # the frame at time u of cycle c is compose(loop^c, ground(u))
         loop = xform.compose(g[-1], xform.inverse(g[0])) if cyclic else np.zeros(3)
@@ -610,8 +639,9 @@ class ClipLibrary:
         self._seqs.append(sequence)
         self._motions.append(motion)
         frame_phase = sequence.phase_at(motion.times()).astype(np.int8)
-        self._parts.append(dict(rot=lr, z=np.array(motion.root_pos[:, 2]), ground=g, fps=motion.fps,
-                                cyclic=bool(cyclic), loop=loop, phase=frame_phase))
+        self._parts.append(dict(rot=lr, z=z, ground=g, fps=motion.fps,
+                                cyclic=bool(cyclic), loop=loop, phase=frame_phase,
+                                share=sequence.left_share(motion.times())))
         self._packed = None
         return len(self._names) - 1
 
@@ -628,6 +658,7 @@ class ClipLibrary:
                 z=np.concatenate([p["z"] for p in self._parts]),
                 ground=np.concatenate([p["ground"] for p in self._parts]),
                 phase=np.concatenate([p["phase"] for p in self._parts]),
+                share=np.concatenate([p["share"] for p in self._parts]),
                 start=start, nframes=n, fps=fps, cyclic=cyc, dur=(n - 1) / fps,
                 loop=np.stack([p["loop"] for p in self._parts]))
         return self._packed
@@ -739,6 +770,9 @@ class ActionState:
         t_off: time it was stopped (``None``: playing).
         auto_stop: a non-cyclic action stops by itself so that it has faded out when its clip ends.
         h0: action time at the start (the first element's beginning).
+        handover: stopped while another action waited for its synchronized start: it keeps playing
+            until that action starts, then fades out (the character never falls back to the neutral
+            pose between the two).
     """
 
     key: object
@@ -755,6 +789,7 @@ class ActionState:
     h0: float = 0.0
     end_h: float = math.inf
     order: int = 0
+    handover: bool = False
 
     def weight_params(self):
         return (math.inf if self.t_on is None else self.t_on, self.ramp_in,
@@ -898,10 +933,18 @@ class _Character:
         if a.t_on is None:  # still waiting for synchronization: never started
             self.sync.cancel(key)
             del self.actions[key]
+            if not self.sync.pending:
+                for b in list(self.actions.values()):
+                    if b.handover:
+                        self.stop(b.key, now)
             self._layout()
+            return
+        if self.sync is not None and a.t_off is None and self.sync.pending and not a.handover:
+            a.handover = True   # fades out when the waiting action starts (see ActionState.handover)
             return
         if a.t_off is None or a.t_off > now:
             a.t_off = now
+            a.handover = False
             if self.planner is not None:
                 self.planner.replan()
             self._write_segments()
@@ -945,13 +988,23 @@ class _Character:
                     changed = True
             if not sync.tracks:
                 break
+            started = handed = False
             for tr in sync.tracks:
                 if tr.first == k:
                     a = actions[tr.key]
                     if a.t_on is None:
                         a.t_on = tk
-                        changed = True
+                        changed = started = True
+            if started and not sync.pending:
+                for a in actions.values():
+                    if a.handover:
+                        a.handover = False
+                        if a.t_off is None:
+                            a.t_off = tk
+                            handed = True
             planner.enter()
+            if handed:
+                planner.replan()
             changed |= self._auto_stops(tk)
         if changed or self.sync.idle:
             self._layout()
@@ -1100,11 +1153,12 @@ class Mixer:
         self._key = [[None] * S for _ in range(N)]
         self._next = np.full(N, math.inf)
         self.ground = np.zeros((N, 3))
-        self.support = np.zeros(N, dtype=np.int64)       # primary planted foot: 0 none, 1 left, 2 right, 3 both
+        self.support = np.zeros(N, dtype=np.int64)       # planted foot carrying most weight: 0 none, 1 left, 2 right
         self._planted = np.zeros((N, 2), dtype=bool)     # left, right planted at the previous frame
         self._foot_pt = np.full((N, 2), -1, dtype=np.int64)
         self._foot_xy = np.zeros((N, 2, 2))              # where each planted foot's lowest point is held
         self._release = np.zeros((N, 2, 2))              # IK offset fading out after a foot lifts off
+        self._drop = np.zeros(N)                         # how far the pelvis is lowered to reach the feet
         from kinodyn.blend.footlock import legs
 
         self._legs = legs(library.skeleton)
@@ -1168,23 +1222,25 @@ class Mixer:
                              np.ascontiguousarray(sk.parents, dtype=np.int64))
         return self._legarr
 
-    def _constrain(self, root, q, w, wn, phase, dt: float):
+    def _constrain(self, root, q, w, wn, phase, left, dt: float):
         """Enforce the support (:mod:`kinodyn.blend.footlock`); returns new ``root (N, 3)``, ``q (N, J, 4)``.
 
         Compiled version of :meth:`_constrain_reference` (same result up to rounding): one pass per
         character for the support, forward kinematics, one pass per character for the holds, the IK.
         """
         if not self._compiled:
-            return self._constrain_reference(root, q, w, wn, phase, dt)
+            return self._constrain_reference(root, q, w, wn, phase, left, dt)
         from kinodyn.blend.footlock import pin_feet_fast
 
         N = len(root)
         planted = np.empty((N, 2), dtype=np.bool_)
+        vote = np.empty((N, 2))
         support = np.ascontiguousarray(self.support, dtype=np.int64)
+        left = np.ascontiguousarray(left, dtype=np.float64)
         _support_kernel(np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(wn, dtype=np.float64),
-                        np.ascontiguousarray(phase, dtype=np.int8), support, planted)
+                        np.ascontiguousarray(phase, dtype=np.int8), left, support, planted, vote)
         self.support = support
-        if not planted.any() and not self._planted.any() and not self._release.any():
+        if not planted.any() and not self._planted.any() and not self._release.any() and not self._drop.any():
             return root, q
         hl = self.config.root_halflife
         alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
@@ -1198,34 +1254,30 @@ class Mixer:
         xy = np.empty((N, 2, 2))
         need = np.empty((N, 2), dtype=np.bool_)
         joints, nj, par, off, ne, hips, ankles, reach, chain, offsets, parents = self._leg_arrays()
-        _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, support, self._planted, self._foot_pt, self._foot_xy, self._release,
+        _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left,
+                     self._planted, self._foot_pt, self._foot_xy, self._release, self._drop,
                      joints, nj, par, off, ne, hips, ankles, reach, alpha, decay,
-                     float(self.config.max_foot_offset), target, xy, need)
+                     float(self.config.max_foot_offset), float(self.config.max_pelvis_drop),
+                     float(self.config.max_pelvis_drop) * dt / _DROP_TIME, target, xy, need)
         self._planted = planted
         heading = self.ground[:, 2]
         for s, leg in enumerate(self._legs):
             r = np.nonzero(need[:, s])[0]
             if len(r):
-                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r])
+                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=self._drop[r])
         return root, q
 
-    def _constrain_reference(self, root, q, w, wn, phase, dt: float):
+    def _constrain_reference(self, root, q, w, wn, phase, left, dt: float):
         """Numpy reference of :meth:`_constrain` (the same steps, array by array)."""
         from kinodyn.blend.footlock import pin_feet_fast
         from kinodyn.kinematics import fk_arrays
 
         down_l = (phase == _phases.LS) | (phase == _phases.DS)
         down_r = (phase == _phases.RS) | (phase == _phases.DS)
-        sl = (w * down_l).sum(axis=1)
-        sr = (w * down_r).sum(axis=1)
-        planted = np.stack([sl + wn >= 0.5, sr + wn >= 0.5], axis=1)
-        prev = self.support
-        tie = np.abs(sl - sr) < 1e-6
-        keep = np.where(((prev == 1) & planted[:, 0]) | ((prev == 2) & planted[:, 1]), prev, 3)
-        both = np.where(tie, keep, np.where(sl > sr, 1, 2))
-        mode = np.where(planted[:, 0] & planted[:, 1], both, np.where(planted[:, 0], 1, np.where(planted[:, 1], 2, 0)))
-        self.support = mode
-        if not np.any(planted) and not np.any(self._planted) and not np.any(self._release):
+        vote = np.stack([(w * down_l).sum(axis=1) + wn, (w * down_r).sum(axis=1) + wn], axis=1)
+        planted = vote >= 0.5
+        self.support = np.where(planted[:, 0] & (~planted[:, 1] | (left >= 0.5)), 1, np.where(planted[:, 1], 2, 0))
+        if not np.any(planted) and not np.any(self._planted) and not np.any(self._release) and not np.any(self._drop):
             return root, q
         sk = self.library.skeleton
         gr, gp = fk_arrays(root, q, sk.offsets, sk.parents)
@@ -1249,13 +1301,13 @@ class Mixer:
             switch = self._planted[:, s] & planted[:, s] & (old >= 0) & (idx[:, s] != old)
             if np.any(switch):
                 self._foot_xy[switch, s] = xy[switch, s] + self._foot_xy[switch, s] - p[rows, old, :2][switch]
-        # the primary planted foot (or both) pulls the root toward where it is held
+        # feet planted now are held where they are; the planted feet pull the root toward where they are
+        # held, each by the share of the weight it carries, faded out as its vote nears one half
         rebase = planted & ~self._planted
-        prim = rebase & ((mode[:, None] == np.array([1, 2])) | (mode[:, None] == 3))
-        self._foot_xy = np.where(prim[..., None], xy, self._foot_xy)
+        self._foot_xy = np.where(rebase[..., None], xy, self._foot_xy)
         err = self._foot_xy - xy
-        target = np.where((mode == 1)[:, None], err[:, 0], np.where((mode == 2)[:, None], err[:, 1],
-                          np.where((mode == 3)[:, None], 0.5 * (err[:, 0] + err[:, 1]), 0.0)))
+        share = np.stack([left, 1.0 - left], axis=1) * np.clip((vote - 0.5) * 4.0, 0.0, 1.0) * planted
+        target = (share[..., None] * err).sum(axis=1)
         hl = self.config.root_halflife
         alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
         decay = 0.5 ** (dt / self.config.release_halflife) if self.config.release_halflife > 0 else 0.0
@@ -1265,12 +1317,26 @@ class Mixer:
         xy = xy + shift[:, None, :]
         gp = gp.copy()
         gp[..., :2] += shift[:, None, :]
-        # secondary feet planted now are held where they are after the root moved
-        self._foot_xy = np.where((rebase & ~prim)[..., None], xy, self._foot_xy)
         # a foot that lifts off keeps the IK offset it had and lets it go smoothly (no pop)
         released = self._planted & ~planted
         self._release = np.where(released[..., None], self._foot_xy - xy, self._release * decay)
         self._release = np.where(planted[..., None], 0.0, self._release)
+        # the pelvis comes down (at a bounded speed, and back up smoothly) as far as a held foot needs to
+        # stay within the leg's reach, up to max_pelvis_drop
+        need = np.zeros(len(root))
+        max_drop = self.config.max_pelvis_drop
+        if max_drop > 0:
+            for s, leg in enumerate(self._legs):
+                h = gp[:, leg.ankle, :2] + self._foot_xy[:, s] - xy[:, s] - gp[:, leg.hip, :2]
+                hd2 = (h * h).sum(axis=1)
+                lr2 = (_REACH_MARGIN * self._reach[s]) ** 2
+                v = gp[:, leg.hip, 2] - gp[:, leg.ankle, 2]
+                d = np.where(hd2 < lr2, v - np.sqrt(np.maximum(lr2 - hd2, 0.0)), max_drop)
+                need = np.maximum(need, np.where(planted[:, s], d, 0.0))
+        rise = self._drop + max_drop * dt / _DROP_TIME
+        self._drop = np.maximum(np.minimum(np.minimum(need, max_drop), rise), self._drop * decay)
+        root[:, 2] -= self._drop
+        gp[..., 2] -= self._drop[:, None]
         # a planted foot never strays more than max_foot_offset from where the blend puts it: beyond
         # that the blend has moved on to another stance and the foot slides along (bounded leg stretch)
         off = self._foot_xy - xy
@@ -1284,6 +1350,7 @@ class Mixer:
             hip = gp[:, leg.hip]
             ank = gp[:, leg.ankle]
             e = ank - hip
+            e[:, 2] += self._drop
             reach = np.maximum(self._reach[s], np.linalg.norm(e, axis=1))
             d = np.zeros_like(ank)
             d[:, :2] = off[:, s] * scale[:, s, None]
@@ -1302,10 +1369,10 @@ class Mixer:
         heading = self.ground[:, 2]
         target = np.where(planted[..., None], self._foot_xy, xy + self._release)
         for s, leg in enumerate(self._legs):
-            need = np.linalg.norm(target[:, s] - xy[:, s], axis=-1) > 1e-6
+            need = (np.linalg.norm(target[:, s] - xy[:, s], axis=-1) > 1e-6) | (self._drop > 0)
             r = np.nonzero(need)[0]
             if len(r):
-                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r])
+                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=self._drop[r])
         return root, q
 
     # ------------------------------------------------------------------ commands
@@ -1423,7 +1490,10 @@ class Mixer:
         root = np.stack([g[:, 0], g[:, 1], zz], axis=1)
         q[:, 0] = quat.mul(quat.from_heading(g[:, 2]), q[:, 0])
         if move and self.config.enforce and self._legs is not None:
-            root, q = self._constrain(root, q, w, wn, phase, dt)
+            sh = P["share"]
+            left = (w * (sh[i0] * (1.0 - a) + sh[i0 + 1] * a)).sum(axis=1) + 0.5 * wn
+            left /= np.maximum(w.sum(axis=1) + wn, 1e-12)
+            root, q = self._constrain(root, q, w, wn, phase, left, dt)
             self.ground = np.concatenate([root[:, :2], g[:, 2:]], axis=1)
         if self.recordings is not None and move:
             for n, rec in enumerate(self.recordings):

@@ -279,6 +279,35 @@ class PhaseSequence:
         idx = k % n if self.cyclic else np.minimum(k, n - 1)
         return self.phases[idx]
 
+    def left_share(self, t) -> np.ndarray:
+        """Share of the body's weight on the left foot at clip times ``t`` implied by the sequence.
+
+        1 in ``LS``, 0 in ``RS``; over a ``DS`` element the weight passes linearly from the single
+        support before it to the single support after it (a double support between two steps of the
+        same foot keeps that foot's share; a missing or non-single neighbour counts as 1/2). Flight
+        gives 1/2. Used to decide which planted foot anchors the body (see
+        :mod:`kinodyn.blend.footlock`) without a jump when a foot lifts.
+        """
+        t = np.asarray(t, dtype=np.float64)
+        k = np.asarray(self.index_at(t))
+        n = len(self.phases)
+        share = np.array([0.5 if p in (DS, FLIGHT) else (1.0 if p == LS else 0.0) for p in self.phases])
+        if self.cyclic:
+            i = k % n
+            prev, nxt = share[(i - 1) % n], share[(i + 1) % n]
+            c = np.floor((t - self._bounds[0]) / self.total)
+            u = t - c * self.total
+            b0, b1 = self._bounds[i], self._bounds[i + 1]
+        else:
+            i = np.minimum(k, n - 1)
+            prev = np.where(i > 0, share[np.maximum(i - 1, 0)], 0.5)
+            nxt = np.where(i < n - 1, share[np.minimum(i + 1, n - 1)], 0.5)
+            u = np.minimum(t, self._bounds[-1])   # past the end the last element repeats: hold its end
+            b0, b1 = self._bounds[i], self._bounds[i + 1]
+        frac = np.clip((u - b0) / np.maximum(b1 - b0, 1e-12), 0.0, 1.0)
+        ds = self.phases[i] == DS
+        return np.where(ds, (1.0 - frac) * prev + frac * nxt, share[i])
+
     # ------------------------------------------------------------------ adaptation
     def time_scaled(self, speed: float) -> PhaseSequence:
         """The sequence of the clip played ``speed`` times faster (an action that scales time adapts its

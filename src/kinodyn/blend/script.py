@@ -21,6 +21,8 @@ A script (``kinodyn blend SCRIPT.yaml -o out.bvh``)::
         ramp_out: 0.4
         key: walk1             # optional identifier
 
+A ``cyclic`` clip should cover one cycle (heel strike to the same heel strike); a captured cycle never
+closes exactly, so the small mismatch between its last and first frames is spread over the clip.
 Relative file paths are relative to the script. Errors name the script, the entry and the key.
 """
 
