@@ -18,7 +18,6 @@ ratio against the unsynchronized baseline measured in the same run is the robust
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
@@ -94,10 +93,18 @@ def sliding_benchmark() -> dict:
 
 
 def run(quick: bool = False, progress=None) -> BenchResult:
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    """The blend benchmark on one thread (the compiled kernels' thread count is restored after)."""
     import numba
 
+    threads = numba.get_num_threads()
     numba.set_num_threads(1)
+    try:
+        return _run(quick)
+    finally:
+        numba.set_num_threads(threads)
+
+
+def _run(quick: bool) -> BenchResult:
     res = BenchResult("blend")
     lib = _library()
     n = 200 if quick else 1000

@@ -8,11 +8,13 @@ Modules: :mod:`~kinodyn.blend.phases` (sequences, the algebra, extension: sectio
 :mod:`~kinodyn.blend.sync` (chronological organization, section 5.1, appendix A),
 :mod:`~kinodyn.blend.timewarp` (durations and time warp, 5.2-5.3), :mod:`~kinodyn.blend.mixer`
 (actions, ramps, priorities, blending), :mod:`~kinodyn.blend.footlock` (support constraints after
-blending), :mod:`~kinodyn.blend.script` (YAML scripts),
+blending), :mod:`~kinodyn.blend.parametric` (cycles blended by weights, a parametric model that adapts
+its sequence with its motion), :mod:`~kinodyn.blend.script` (YAML scripts),
 :mod:`~kinodyn.blend.plots` (figures 9 and 10).
 """
 
 from kinodyn.blend.mixer import BlendConfig, ClipLibrary, Mixer, Pose
+from kinodyn.blend.parametric import blend_cycles
 from kinodyn.blend.phases import (
     DS,
     ERR,
@@ -48,6 +50,7 @@ __all__ = [
     "Synchronizer",
     "WarpConfig",
     "WarpPlanner",
+    "blend_cycles",
     "combine",
     "compatible",
     "load_script",

@@ -645,6 +645,24 @@ class ClipLibrary:
         self._packed = None
         return len(self._names) - 1
 
+    def add_blend(self, name: str, weights: dict) -> int:
+        """Add the cycle between library clips at ``weights`` (``{clip: weight}``), a parametric model
+        (:func:`kinodyn.blend.parametric.blend_cycles`); returns its index.
+
+        The clips must be cyclic and share a support pattern; the new clip's sequence is built with it.
+        """
+        from kinodyn.blend.parametric import blend_cycles
+
+        if not isinstance(weights, dict) or not weights:
+            raise ParameterError(f"weights must map clip names to weights, got {weights!r}")
+        idx = [self.index(k) for k in weights]
+        for i in idx:
+            if not self._parts[i]["cyclic"]:
+                raise MotionError(f"clip {self._names[i]!r} is not cyclic; only cycles blend into a new cycle")
+        motion, seq = blend_cycles([self._motions[i] for i in idx], list(weights.values()),
+                                   [self._seqs[i] for i in idx], fps=self._motions[idx[0]].fps)
+        return self.add(name, motion.replace(name=name), cyclic=True, sequence=seq)
+
     def _pack(self):
         if self._packed is None:
             if not self._parts:
@@ -1410,7 +1428,9 @@ class Mixer:
         return key
 
     def stop(self, key, character: int = 0, at: float | None = None) -> None:
-        """Stop an action: it fades out over its ``ramp_out`` (a start still waiting is cancelled)."""
+        """Stop an action: it fades out over its ``ramp_out``. A start still waiting is cancelled; an action
+        stopped while another waits for its synchronized start plays on until that one starts (hand-over).
+        """
         self._char(character).stop(key, self._at(at))
 
     def _at(self, at) -> float:

@@ -11,6 +11,7 @@ A script (``kinodyn blend SCRIPT.yaml -o out.bvh``)::
     neutral: idle              # the neutral double-support pose: a clip name (default: idle if known)
     clips:                     # clips from files, in addition to the built-in library
       mywalk: {file: walk.bvh, cyclic: true, drop_first: 1, start: 0.5, stop: 1.63, fps: 60}
+      brisk: {mix: {walk: 0.5, mywalk: 0.5}}   # a cycle between cycles (kinodyn.blend.parametric)
     actions:
       - clip: walk             # built-in clip or a name from `clips`
         start: 0.0             # seconds
@@ -41,6 +42,7 @@ __all__ = [
     "ActionEntry",
     "BlendResult",
     "ClipEntry",
+    "MixEntry",
     "Script",
     "ScriptError",
     "build_library",
@@ -59,6 +61,14 @@ _CLIP_KEYS = {"file", "cyclic", "drop_first", "start", "stop", "fps", "scale", "
 
 class ScriptError(FileFormatError):
     """A blend script is malformed."""
+
+
+@dataclass(frozen=True)
+class MixEntry:
+    """A cycle blended from other cyclic clips: ``weights`` is ``((clip, weight), ...)``."""
+
+    name: str
+    weights: tuple
 
 
 @dataclass(frozen=True)
@@ -127,6 +137,7 @@ class Script:
     neutral: str | None = None
     name: str = ""
     path: Path | None = None
+    mixes: tuple[MixEntry, ...] = ()
 
     def with_sync(self, synchronize: bool) -> Script:
         return replace(self, synchronize=synchronize)
@@ -162,7 +173,7 @@ def parse_script(data, path=None) -> Script:
         raise ScriptError(f"{src}: the script must be a mapping with an 'actions' list, got {type(data).__name__}")
     _unknown(src, data, _TOP_KEYS)
     base = Path(path).resolve().parent if path is not None else Path.cwd()
-    clips = []
+    clips, mixes = [], []
     raw_clips = data.get("clips") or {}
     if not isinstance(raw_clips, dict):
         raise ScriptError(f"{src}: clips must be a mapping name -> {{file: ...}}, got {type(raw_clips).__name__}")
@@ -170,8 +181,18 @@ def parse_script(data, path=None) -> Script:
         where = f"{src}: clips.{name}"
         if isinstance(c, str):
             c = {"file": c}
+        if isinstance(c, dict) and "mix" in c:
+            _unknown(where, c, {"mix"})
+            mix = c["mix"]
+            if not isinstance(mix, dict) or not mix:
+                raise ScriptError(f"{where}: mix must map clip names to weights, got {mix!r}")
+            weights = tuple((str(k), _num(f"{where}.mix", str(k), v, nonneg=True)) for k, v in mix.items())
+            if sum(v for _, v in weights) <= 0:
+                raise ScriptError(f"{where}: mix weights must not all be zero")
+            mixes.append(MixEntry(str(name), weights))
+            continue
         if not isinstance(c, dict) or "file" not in c:
-            raise ScriptError(f"{where}: needs a 'file'")
+            raise ScriptError(f"{where}: needs a 'file' (or a 'mix' of cyclic clips)")
         _unknown(where, c, _CLIP_KEYS)
         f = Path(str(c["file"]))
         f = f if f.is_absolute() else base / f
@@ -221,7 +242,7 @@ def parse_script(data, path=None) -> Script:
         _num(src, "ramp_in", data.get("ramp_in", 0.4), nonneg=True),
         _num(src, "ramp_out", data.get("ramp_out", 0.4), nonneg=True),
         None if data.get("neutral") is None else str(data["neutral"]), str(data.get("name", "")),
-        None if path is None else Path(path))
+        None if path is None else Path(path), tuple(mixes))
 
 
 def load_script(path) -> Script:
@@ -251,6 +272,7 @@ def build_library(script: Script, extra: dict | None = None):
 
     extra = dict(extra or {})
     files = {c.name: c for c in script.clips}
+    mixes = {m.name: m for m in script.mixes if m.name not in extra}
     wanted = [a.clip for a in script.actions]
     if script.neutral is not None:
         wanted.append(script.neutral)
@@ -261,8 +283,26 @@ def build_library(script: Script, extra: dict | None = None):
         builtin_names = data_lib.names()
     except ImportError:  # pragma: no cover - the library ships with the package
         data_lib = None
-    motions: dict[str, tuple[Motion, bool]] = {}
+    where = f"{script.path}" if script.path else "script"
+    # the clips mixes are made of come first, mixes after their parts (in the order they are written)
+    order: list[str] = []
+
+    def need(n, chain=()):
+        if n in order:
+            return
+        if n in chain:
+            raise ScriptError(f"{where}: clips.{n}: a mix cannot contain itself (through {' -> '.join(chain)})")
+        if n in mixes:
+            for part, _ in mixes[n].weights:
+                need(part, chain + (n,))
+        order.append(n)
+
     for n in dict.fromkeys(wanted):
+        need(n)
+    motions: dict[str, tuple[Motion, bool]] = {}
+    for n in order:
+        if n in mixes:
+            continue
         if n in extra:
             motions[n] = extra[n]
         elif n in files:
@@ -270,13 +310,18 @@ def build_library(script: Script, extra: dict | None = None):
         elif n in builtin_names:
             motions[n] = (data_lib.load(n), data_lib.info(n).cyclic)
         else:
-            where = f"{script.path}" if script.path else "script"
-            known = sorted(set(builtin_names) | set(files) | set(extra))
+            known = sorted(set(builtin_names) | set(files) | set(extra) | set(mixes))
             raise ScriptError(f"{where}: unknown clip {n!r}; known clips: {', '.join(known)}")
     first = next(iter(motions.values()))[0]
     lib = ClipLibrary(first.skeleton)
     for n, (m, cyc) in motions.items():
         lib.add(n, m, cyc)
+    for n in order:
+        if n in mixes:
+            try:
+                lib.add_blend(n, dict(mixes[n].weights))
+            except KinodynError as e:
+                raise ScriptError(f"{where}: clips.{n}: {e}") from None
     if script.neutral is None and "idle" not in lib.names and "idle" in builtin_names:
         idle = data_lib.load("idle")
         if idle.skeleton.same_topology(lib.skeleton):  # the built-in standing pose as the neutral pose
