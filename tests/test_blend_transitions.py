@@ -38,6 +38,7 @@ def _no_foot_under_two_constraints(result):
 
 def test_builtin_clips_slide_5x_less_with_synchronization(builtin):
     figs, _ = builtin
+    _report("built-in figure 12/13 script", figs)
     s, u = figs["synced"], figs["unsynced"]
     assert s["planted_frames"] > 800 and u["planted_frames"] > 800
     assert figs["sliding_ratio"] >= 5.0, figs["sliding_ratio"]
@@ -97,6 +98,14 @@ def _cmu_script(mocap, fight=("cmu_135_06-martialArts.amc", 8.9, 11.1)):
             {"clip": "jump", "start": 11.8, "priority": 2}]})
 
 
+def _report(label, figs):
+    s, u = figs["synced"], figs["unsynced"]
+    print(f"{label}: sliding {s['sliding_cm_s']:.2f} vs {u['sliding_cm_s']:.2f} cm/s (x{figs['sliding_ratio']:.1f}), "
+          f"transitions x{figs['sliding_ratio_transitions']:.1f}, detected contacts "
+          f"{s['detected_sliding_cm_s']:.2f} vs {u['detected_sliding_cm_s']:.2f} cm/s "
+          f"(x{figs['sliding_ratio_detected']:.1f}); RS+LS frames {s['err_frames']} vs {u['err_frames']}")
+
+
 def _need(mocap_dir, files):
     for f in files:
         if not (mocap_dir / f).exists():
@@ -115,6 +124,7 @@ def test_cmu_clips_transitions(mocap_dir):
     _need(mocap_dir, _CMU_FILES + ("fighting/cmu_135_06-martialArts.amc",))
     results = {}
     figs = sliding_figures(_cmu_script(mocap_dir), results=results)
+    _report("CMU figure 12/13 script, kata stepping block", figs)
     assert figs["synced"]["err_frames"] == 0 and figs["unsynced"]["err_frames"] > 0
     assert _no_foot_under_two_constraints(results["synced"]).all()
     assert figs["sliding_ratio"] >= 5.0, figs["sliding_ratio"]
@@ -131,6 +141,7 @@ def test_cmu_other_fighting_moves_that_step(mocap_dir, fight):
     """Other stretches of the kata, and a kick with a run-up: moves that step into their stance."""
     _need(mocap_dir, _CMU_FILES + ("fighting/" + fight[0],))
     figs = sliding_figures(_cmu_script(mocap_dir, fight))
+    _report(f"CMU script with {fight[0]} {fight[1]:g}-{fight[2]:g} s", figs)
     assert figs["synced"]["err_frames"] == 0
     assert figs["sliding_ratio"] >= 5.0, figs["sliding_ratio"]
     assert figs["sliding_ratio_detected"] >= 5.0, figs["sliding_ratio_detected"]
@@ -144,6 +155,7 @@ def test_cmu_punch_without_a_step_still_slides_where_the_stance_changes(mocap_di
     (or stretch the legs) whatever the synchronization does. The gain is smaller, about 4x."""
     _need(mocap_dir, _CMU_FILES + ("fighting/cmu_02_05.amc",))
     figs = sliding_figures(_cmu_script(mocap_dir, ("cmu_02_05.amc", 2.0, 4.5)))
+    _report("CMU script with the 02_05 punch (no step)", figs)
     assert figs["synced"]["err_frames"] == 0
     assert figs["sliding_ratio"] >= 3.0, figs["sliding_ratio"]
     assert figs["sliding_ratio_detected"] >= 4.0, figs["sliding_ratio_detected"]
