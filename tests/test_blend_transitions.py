@@ -44,8 +44,26 @@ def test_builtin_clips_slide_5x_less_with_synchronization(builtin):
     assert figs["sliding_ratio"] >= 5.0, figs["sliding_ratio"]
     assert figs["sliding_ratio_transitions"] >= 5.0, figs["sliding_ratio_transitions"]
     assert s["sliding_cm_s"] < 4.0
-    # the foundation's measure on contacts detected on the result agrees
-    assert figs["sliding_ratio_detected"] >= 5.0, figs["sliding_ratio_detected"]
+    # the foundation's measure on contacts detected on the result agrees. It only sees feet slower than
+    # the detector's 0.35 m/s, so it misses most of the unsynchronized sliding (its ratio is lower), and
+    # what remains synchronized is mostly the clips' own landings: less than the built-in walk's 0.7 cm/s.
+    assert figs["sliding_ratio_detected"] >= 4.0, figs["sliding_ratio_detected"]
+    assert s["detected_sliding_cm_s"] < 0.7
+
+
+def test_planted_feet_do_not_sink_into_the_floor(builtin):
+    """Blending poses of different root heights pushes feet through the floor (the plain blend by up to
+    about 4 cm); held feet stay at least at the height the actions' planted feet have (2.5 cm here, the
+    sole), and synchronized feet never go below it by more than a few millimetres."""
+    from kinodyn.contacts import foot_points
+
+    _, results = builtin
+    lows = {}
+    for name in ("synced", "unsynced"):
+        p = foot_points(results[name].motion)
+        lows[name] = min(float(p[s][..., 2].min()) for s in p)
+    assert lows["unsynced"] < -0.02
+    assert lows["synced"] > 0.02
 
 
 def test_builtin_no_foot_is_under_two_support_constraints(builtin):

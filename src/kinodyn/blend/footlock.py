@@ -5,7 +5,9 @@ carry the body; this module makes the blended pose respect that support, the rol
 gives to kinematic constraints computed after blending (its section 3). A foot is *planted* when the
 weights of the actions whose current phase puts it down (``RS``: right, ``LS``: left, ``DS``: both; the
 neutral pose: both) add up to at least one half. Each planted foot is held at the position its lowest
-point had when it was planted (or when the lowest point moved from heel to toe).
+point had when it was planted (or when the lowest point moved from heel to toe), and never lower than
+the actions' clips keep their planted feet (blending poses of different root heights would push it
+through the floor).
 
 The root's horizontal position follows the held feet, each by the share of the body's weight it
 carries: all of it on a single support, passed linearly from the old support foot to the new one over a

@@ -345,13 +345,14 @@ _DROP_TIME = 0.2
 
 
 @numba.njit(cache=True)
-def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, was_planted, foot_pt, foot_xy, release,
-                 drop, leg_joints, n_joints, end_par, end_off, n_ends, hips, ankles, reach, alpha, decay, lim,
-                 max_drop, rise, target, xy, need):  # pragma: no cover - compiled
+def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, rest, was_planted, foot_pt, foot_xy,
+                 release, release_z, drop, leg_joints, n_joints, end_par, end_off, n_ends, hips, ankles, reach, alpha,
+                 decay, lim, max_drop, rise, target, xy, lift, need):  # pragma: no cover - compiled
     """Where each foot is held and how far the root follows (the middle part of ``_constrain``, one pass
     per character). Forward kinematics fills ``gr``, ``gp`` for the joints of ``chain`` (the root, the legs
-    and their ancestors, parents first) only; ``root``, ``gp``, ``foot_pt``, ``foot_xy``, ``release`` are
-    updated in place."""
+    and their ancestors, parents first) only; ``root``, ``gp``, ``foot_pt``, ``foot_xy``, ``release``,
+    ``release_z``, ``drop`` are updated in place; ``target``, ``xy``, ``lift`` (how far each
+    ankle goes up) and ``need`` are outputs."""
     n_chars = root.shape[0]
     pz = np.empty(leg_joints.shape[1] + end_par.shape[1])
     px = np.empty_like(pz)
@@ -396,12 +397,24 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, 
                 foot_xy[n, s, 0] = xy[n, s, 0] + foot_xy[n, s, 0] - px[old]
                 foot_xy[n, s, 1] = xy[n, s, 1] + foot_xy[n, s, 1] - py[old]
             foot_pt[n, s] = idx if planted[n, s] else -1
-        # feet planted now are held where they are; the planted feet pull the root toward where they are
-        # held, each by the share of the weight it carries, faded out as its vote nears one half
-        for s in range(2):
+            # feet planted now are held where they are
             if planted[n, s] and not was_planted[n, s]:
                 foot_xy[n, s, 0] = xy[n, s, 0]
                 foot_xy[n, s, 1] = xy[n, s, 1]
+            # how far the ankle must go up so that a held foot does not sink below the height the actions'
+            # planted feet have; a lifted foot lets the correction go smoothly
+            sink = max(rest[n] - pz[idx], 0.0)
+            if planted[n, s]:
+                release_z[n, s] = 0.0
+                lift[n, s] = sink
+            elif was_planted[n, s]:
+                release_z[n, s] = sink
+                lift[n, s] = sink
+            else:
+                release_z[n, s] *= decay
+                lift[n, s] = release_z[n, s]
+        # the planted feet pull the root toward where they are held, each by the share of the weight it
+        # carries, faded out as its vote nears one half
         b0 = left[n] * min(max((vote[n, 0] - 0.5) * 4.0, 0.0), 1.0) if planted[n, 0] else 0.0
         b1 = (1.0 - left[n]) * min(max((vote[n, 1] - 0.5) * 4.0, 0.0), 1.0) if planted[n, 1] else 0.0
         gx = b0 * (foot_xy[n, 0, 0] - xy[n, 0, 0]) + b1 * (foot_xy[n, 1, 0] - xy[n, 1, 0])
@@ -436,7 +449,7 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, 
                 hy = gp[n, a, 1] + foot_xy[n, s, 1] - xy[n, s, 1] - gp[n, h, 1]
                 lr = _REACH_MARGIN * reach[s]
                 hd2 = hx * hx + hy * hy
-                v = gp[n, h, 2] - gp[n, a, 2]
+                v = gp[n, h, 2] - gp[n, a, 2] - lift[n, s]
                 need_drop = max(need_drop, v - np.sqrt(lr * lr - hd2) if hd2 < lr * lr else max_drop)
         # the pelvis comes down (at a bounded speed) when a held foot needs it, and back up smoothly
         dz = max(min(need_drop, max_drop, drop[n] + rise), drop[n] * decay)
@@ -454,7 +467,8 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, 
                 dist = np.sqrt(ox * ox + oy * oy)
                 scale = lim / max(dist, 1e-12) if dist > lim else 1.0
                 h, a = hips[s], ankles[s]
-                e0, e1, e2 = gp[n, a, 0] - gp[n, h, 0], gp[n, a, 1] - gp[n, h, 1], gp[n, a, 2] + dz - gp[n, h, 2]
+                e0, e1 = gp[n, a, 0] - gp[n, h, 0], gp[n, a, 1] - gp[n, h, 1]
+                e2 = gp[n, a, 2] + dz + lift[n, s] - gp[n, h, 2]
                 ee = e0 * e0 + e1 * e1 + e2 * e2
                 r = max(reach[s], np.sqrt(ee))
                 d0, d1 = ox * scale, oy * scale
@@ -472,9 +486,10 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, 
             else:
                 target[n, s, 0] = xy[n, s, 0] + release[n, s, 0]
                 target[n, s, 1] = xy[n, s, 1] + release[n, s, 1]
+            lift[n, s] += dz
             dx = target[n, s, 0] - xy[n, s, 0]
             dy = target[n, s, 1] - xy[n, s, 1]
-            need[n, s] = dz > 0.0 or np.sqrt(dx * dx + dy * dy) > 1e-6
+            need[n, s] = abs(lift[n, s]) > 1e-9 or np.sqrt(dx * dx + dy * dy) > 1e-6
 
 
 @numba.njit(cache=True, inline="always")
@@ -559,6 +574,22 @@ def blend_frames_fast(rot_db, i0, a, w, ref, wref) -> np.ndarray:
 # ----------------------------------------------------------------------------------------- library
 
 
+def _rest_height(motion, contact_config=None, feet=None) -> float:
+    """Height of a planted foot's lowest point in ``motion``: the median over its contact frames (the
+    lowest foot point of the whole clip when it never touches the ground)."""
+    from kinodyn import contacts
+
+    try:
+        c = contacts.detect(motion, contact_config or contacts.ContactConfig(), feet)
+    except UnknownNameError:
+        return 0.0
+    z = [c.lowest[s][c.labels[s], 2] for s in contacts.SIDES]
+    z = np.concatenate(z)
+    if len(z) == 0:
+        return float(min(c.lowest[s][:, 2].min() for s in contacts.SIDES))
+    return float(np.median(z))
+
+
 def _close_loop(rot, z):
     """Make a cyclic clip seamless: its last frame must equal its first, which captured cycles only
     approximate (a few degrees and centimetres apart). The mismatch of every joint rotation ``rot
@@ -641,7 +672,7 @@ class ClipLibrary:
         frame_phase = sequence.phase_at(motion.times()).astype(np.int8)
         self._parts.append(dict(rot=lr, z=z, ground=g, fps=motion.fps,
                                 cyclic=bool(cyclic), loop=loop, phase=frame_phase,
-                                share=sequence.left_share(motion.times())))
+                                share=sequence.left_share(motion.times()), rest=_rest_height(motion, self.contact_config, feet)))
         self._packed = None
         return len(self._names) - 1
 
@@ -677,6 +708,7 @@ class ClipLibrary:
                 ground=np.concatenate([p["ground"] for p in self._parts]),
                 phase=np.concatenate([p["phase"] for p in self._parts]),
                 share=np.concatenate([p["share"] for p in self._parts]),
+                rest=np.array([p["rest"] for p in self._parts]),
                 start=start, nframes=n, fps=fps, cyclic=cyc, dur=(n - 1) / fps,
                 loop=np.stack([p["loop"] for p in self._parts]))
         return self._packed
@@ -1177,6 +1209,7 @@ class Mixer:
         self._foot_xy = np.zeros((N, 2, 2))              # where each planted foot's lowest point is held
         self._release = np.zeros((N, 2, 2))              # IK offset fading out after a foot lifts off
         self._drop = np.zeros(N)                         # how far the pelvis is lowered to reach the feet
+        self._release_z = np.zeros((N, 2))               # height correction fading out after a lift-off
         from kinodyn.blend.footlock import legs
 
         self._legs = legs(library.skeleton)
@@ -1186,6 +1219,7 @@ class Mixer:
         self._legarr = None
         self._compiled = True  # False: the numpy reference of the support constraints (tests)
         self._neutral = self._neutral_pose(neutral)
+        self._neutral_rest = self._pose_rest(*self._neutral)
         self.chars = [_Character(self, i) for i in range(N)]
         self.recordings = [Recording() for _ in range(N)] if record else None
         self._frame = 0
@@ -1210,6 +1244,22 @@ class Mixer:
             return rot[0], float(z[0])
         rot, z = lib.sample(np.array([lib.index(neutral)]), np.array([0.0]))
         return rot[0], float(z[0])
+
+    def _pose_rest(self, rot, z) -> float:
+        """Height of the lowest foot point of a standing pose (``rot (J, 4)`` facing frame, root height)."""
+        from kinodyn.kinematics import fk_arrays
+
+        if self._legs is None:
+            return 0.0
+        sk = self.library.skeleton
+        gr, gp = fk_arrays(np.array([[0.0, 0.0, z]]), rot[None], sk.offsets, sk.parents)
+        lows = []
+        for leg in self._legs:
+            lows.append(gp[0, leg.joints, 2].min())
+            if len(leg.ends):
+                par = sk.end_parents[leg.ends]
+                lows.append((gp[0, par] + _rotate(gr[0, par], sk.end_offsets[leg.ends]))[:, 2].min())
+        return float(min(lows))
 
     def _leg_arrays(self):
         """The legs' foot points as padded arrays for :func:`_hold_kernel` (built once)."""
@@ -1240,14 +1290,14 @@ class Mixer:
                              np.ascontiguousarray(sk.parents, dtype=np.int64))
         return self._legarr
 
-    def _constrain(self, root, q, w, wn, phase, left, dt: float):
+    def _constrain(self, root, q, w, wn, phase, left, rest, dt: float):
         """Enforce the support (:mod:`kinodyn.blend.footlock`); returns new ``root (N, 3)``, ``q (N, J, 4)``.
 
         Compiled version of :meth:`_constrain_reference` (same result up to rounding): one pass per
         character for the support, forward kinematics, one pass per character for the holds, the IK.
         """
         if not self._compiled:
-            return self._constrain_reference(root, q, w, wn, phase, left, dt)
+            return self._constrain_reference(root, q, w, wn, phase, left, rest, dt)
         from kinodyn.blend.footlock import pin_feet_fast
 
         N = len(root)
@@ -1258,7 +1308,8 @@ class Mixer:
         _support_kernel(np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(wn, dtype=np.float64),
                         np.ascontiguousarray(phase, dtype=np.int8), left, support, planted, vote)
         self.support = support
-        if not planted.any() and not self._planted.any() and not self._release.any() and not self._drop.any():
+        if (not planted.any() and not self._planted.any() and not self._release.any() and not self._drop.any()
+                and not self._release_z.any()):
             return root, q
         hl = self.config.root_halflife
         alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
@@ -1271,21 +1322,23 @@ class Mixer:
         target = np.empty((N, 2, 2))
         xy = np.empty((N, 2, 2))
         need = np.empty((N, 2), dtype=np.bool_)
+        lift = np.empty((N, 2))
         joints, nj, par, off, ne, hips, ankles, reach, chain, offsets, parents = self._leg_arrays()
         _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left,
-                     self._planted, self._foot_pt, self._foot_xy, self._release, self._drop,
-                     joints, nj, par, off, ne, hips, ankles, reach, alpha, decay,
+                     np.ascontiguousarray(rest, dtype=np.float64), self._planted, self._foot_pt, self._foot_xy,
+                     self._release, self._release_z,
+                     self._drop, joints, nj, par, off, ne, hips, ankles, reach, alpha, decay,
                      float(self.config.max_foot_offset), float(self.config.max_pelvis_drop),
-                     float(self.config.max_pelvis_drop) * dt / _DROP_TIME, target, xy, need)
+                     float(self.config.max_pelvis_drop) * dt / _DROP_TIME, target, xy, lift, need)
         self._planted = planted
         heading = self.ground[:, 2]
         for s, leg in enumerate(self._legs):
             r = np.nonzero(need[:, s])[0]
             if len(r):
-                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=self._drop[r])
+                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=lift[r, s])
         return root, q
 
-    def _constrain_reference(self, root, q, w, wn, phase, left, dt: float):
+    def _constrain_reference(self, root, q, w, wn, phase, left, rest, dt: float):
         """Numpy reference of :meth:`_constrain` (the same steps, array by array)."""
         from kinodyn.blend.footlock import pin_feet_fast
         from kinodyn.kinematics import fk_arrays
@@ -1295,11 +1348,13 @@ class Mixer:
         vote = np.stack([(w * down_l).sum(axis=1) + wn, (w * down_r).sum(axis=1) + wn], axis=1)
         planted = vote >= 0.5
         self.support = np.where(planted[:, 0] & (~planted[:, 1] | (left >= 0.5)), 1, np.where(planted[:, 1], 2, 0))
-        if not np.any(planted) and not np.any(self._planted) and not np.any(self._release) and not np.any(self._drop):
+        if (not np.any(planted) and not np.any(self._planted) and not np.any(self._release) and not np.any(self._drop)
+                and not np.any(self._release_z)):
             return root, q
         sk = self.library.skeleton
         gr, gp = fk_arrays(root, q, sk.offsets, sk.parents)
         xy = np.zeros((len(root), 2, 2))
+        zl = np.zeros((len(root), 2))
         idx = np.zeros((len(root), 2), dtype=np.int64)
         rows = np.arange(len(root))
         for s, leg in enumerate(self._legs):
@@ -1314,6 +1369,7 @@ class Mixer:
             oldz = p[rows, np.maximum(old, 0), 2]
             idx[:, s] = np.where((old >= 0) & (oldz - p[rows, low, 2] < 0.01), old, low)
             xy[:, s] = p[rows, idx[:, s], :2]
+            zl[:, s] = p[rows, idx[:, s], 2]
             # another point of a held foot takes over (heel to toe): it is held where the foot is held,
             # i.e. with the same offset from the blended pose as the point it replaces
             switch = self._planted[:, s] & planted[:, s] & (old >= 0) & (idx[:, s] != old)
@@ -1323,12 +1379,18 @@ class Mixer:
         # held, each by the share of the weight it carries, faded out as its vote nears one half
         rebase = planted & ~self._planted
         self._foot_xy = np.where(rebase[..., None], xy, self._foot_xy)
+        # how far each ankle must go up so that a held foot does not sink below the height the actions'
+        # planted feet have; a lifted foot lets the correction go smoothly
+        released = self._planted & ~planted
+        decay = 0.5 ** (dt / self.config.release_halflife) if self.config.release_halflife > 0 else 0.0
+        sink = np.maximum(rest[:, None] - zl, 0.0)
+        self._release_z = np.where(planted, 0.0, np.where(released, sink, self._release_z * decay))
+        lift = np.where(planted, sink, self._release_z)
         err = self._foot_xy - xy
         share = np.stack([left, 1.0 - left], axis=1) * np.clip((vote - 0.5) * 4.0, 0.0, 1.0) * planted
         target = (share[..., None] * err).sum(axis=1)
         hl = self.config.root_halflife
         alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
-        decay = 0.5 ** (dt / self.config.release_halflife) if self.config.release_halflife > 0 else 0.0
         shift = alpha * target
         root = root.copy()
         root[:, :2] += shift
@@ -1348,7 +1410,7 @@ class Mixer:
                 h = gp[:, leg.ankle, :2] + self._foot_xy[:, s] - xy[:, s] - gp[:, leg.hip, :2]
                 hd2 = (h * h).sum(axis=1)
                 lr2 = (_REACH_MARGIN * self._reach[s]) ** 2
-                v = gp[:, leg.hip, 2] - gp[:, leg.ankle, 2]
+                v = gp[:, leg.hip, 2] - gp[:, leg.ankle, 2] - lift[:, s]
                 d = np.where(hd2 < lr2, v - np.sqrt(np.maximum(lr2 - hd2, 0.0)), max_drop)
                 need = np.maximum(need, np.where(planted[:, s], d, 0.0))
         rise = self._drop + max_drop * dt / _DROP_TIME
@@ -1368,7 +1430,7 @@ class Mixer:
             hip = gp[:, leg.hip]
             ank = gp[:, leg.ankle]
             e = ank - hip
-            e[:, 2] += self._drop
+            e[:, 2] += self._drop + lift[:, s]
             reach = np.maximum(self._reach[s], np.linalg.norm(e, axis=1))
             d = np.zeros_like(ank)
             d[:, :2] = off[:, s] * scale[:, s, None]
@@ -1386,11 +1448,12 @@ class Mixer:
         self._planted = planted
         heading = self.ground[:, 2]
         target = np.where(planted[..., None], self._foot_xy, xy + self._release)
+        lift = lift + self._drop[:, None]
         for s, leg in enumerate(self._legs):
-            need = (np.linalg.norm(target[:, s] - xy[:, s], axis=-1) > 1e-6) | (self._drop > 0)
+            need = (np.linalg.norm(target[:, s] - xy[:, s], axis=-1) > 1e-6) | (np.abs(lift[:, s]) > 1e-9)
             r = np.nonzero(need)[0]
             if len(r):
-                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=self._drop[r])
+                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=lift[r, s])
         return root, q
 
     # ------------------------------------------------------------------ commands
@@ -1511,9 +1574,10 @@ class Mixer:
         q[:, 0] = quat.mul(quat.from_heading(g[:, 2]), q[:, 0])
         if move and self.config.enforce and self._legs is not None:
             sh = P["share"]
-            left = (w * (sh[i0] * (1.0 - a) + sh[i0 + 1] * a)).sum(axis=1) + 0.5 * wn
-            left /= np.maximum(w.sum(axis=1) + wn, 1e-12)
-            root, q = self._constrain(root, q, w, wn, phase, left, dt)
+            total = np.maximum(w.sum(axis=1) + wn, 1e-12)
+            left = ((w * (sh[i0] * (1.0 - a) + sh[i0 + 1] * a)).sum(axis=1) + 0.5 * wn) / total
+            rest = ((w * P["rest"][clip]).sum(axis=1) + wn * self._neutral_rest) / total
+            root, q = self._constrain(root, q, w, wn, phase, left, rest, dt)
             self.ground = np.concatenate([root[:, :2], g[:, 2:]], axis=1)
         if self.recordings is not None and move:
             for n, rec in enumerate(self.recordings):
