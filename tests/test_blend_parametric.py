@@ -90,16 +90,18 @@ def test_cycles_of_different_patterns_or_bad_weights_are_refused(cycles):
 
 
 def test_a_blended_cycle_plays_in_the_mixer_like_any_clip(cycles):
+    from kinodyn.data import library as L
+
     walk, slow = cycles
     lib = ClipLibrary(walk.skeleton)
     lib.add("walk", walk, cyclic=True)
     lib.add("slow", slow, cyclic=True)
-    lib.add("idle", __import__("kinodyn.data.library", fromlist=["load"]).load("idle"), cyclic=True)
+    lib.add("idle", L.load("idle"), cyclic=True)
+    lib.add("turn", L.load("turn_left"))
     i = lib.add_blend("brisk", {"walk": 0.5, "slow": 0.5})
     assert lib.names[i] == "brisk" and lib.cyclic("brisk")
     assert list(lib.sequence("brisk").phases[:4]) in ([DS, LS, DS, RS], [DS, RS, DS, LS])
-    with pytest.raises(MotionError, match="not cyclic"):
-        lib.add("turn", __import__("kinodyn.data.library", fromlist=["load"]).load("turn_left"))
+    with pytest.raises(MotionError, match="'turn' is not cyclic"):
         lib.add_blend("bad", {"walk": 0.5, "turn": 0.5})
     mx = Mixer(lib, 1, BlendConfig(), record=True)
     mx.start("walk", key="w", priority=1)
