@@ -670,9 +670,9 @@ class ClipLibrary:
         self._seqs.append(sequence)
         self._motions.append(motion)
         frame_phase = sequence.phase_at(motion.times()).astype(np.int8)
-        self._parts.append(dict(rot=lr, z=z, ground=g, fps=motion.fps,
-                                cyclic=bool(cyclic), loop=loop, phase=frame_phase,
-                                share=sequence.left_share(motion.times()), rest=_rest_height(motion, self.contact_config, feet)))
+        self._parts.append(dict(rot=lr, z=z, ground=g, fps=motion.fps, cyclic=bool(cyclic), loop=loop,
+                                phase=frame_phase, share=sequence.left_share(motion.times()),
+                                rest=_rest_height(motion, self.contact_config, feet)))
         self._packed = None
         return len(self._names) - 1
 
