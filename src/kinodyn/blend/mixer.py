@@ -1247,19 +1247,12 @@ class Mixer:
 
     def _pose_rest(self, rot, z) -> float:
         """Height of the lowest foot point of a standing pose (``rot (J, 4)`` facing frame, root height)."""
-        from kinodyn.kinematics import fk_arrays
+        from kinodyn import contacts
 
         if self._legs is None:
             return 0.0
-        sk = self.library.skeleton
-        gr, gp = fk_arrays(np.array([[0.0, 0.0, z]]), rot[None], sk.offsets, sk.parents)
-        lows = []
-        for leg in self._legs:
-            lows.append(gp[0, leg.joints, 2].min())
-            if len(leg.ends):
-                par = sk.end_parents[leg.ends]
-                lows.append((gp[0, par] + _rotate(gr[0, par], sk.end_offsets[leg.ends]))[:, 2].min())
-        return float(min(lows))
+        pose = Motion(self.library.skeleton, np.array([[0.0, 0.0, z]]), rot[None], 60.0)
+        return float(min(p[..., 2].min() for p in contacts.foot_points(pose).values()))
 
     def _leg_arrays(self):
         """The legs' foot points as padded arrays for :func:`_hold_kernel` (built once)."""

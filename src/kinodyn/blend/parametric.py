@@ -23,7 +23,7 @@ import numpy as np
 
 from kinodyn.blend.phases import PhaseSequence
 from kinodyn.errors import MotionError, ParameterError
-from kinodyn.math import quat
+from kinodyn.math import quat, xform
 from kinodyn.motion import Motion
 
 __all__ = ["blend_cycles", "register_cycles"]
@@ -38,7 +38,6 @@ def register_cycles(sequences) -> list[int]:
     Raises:
         MotionError: a sequence is not cyclic or does not share the first one's support pattern.
     """
-    names = {0: "DS", 1: "RS", 2: "LS", 7: "FLIGHT"}
     ref = np.asarray(sequences[0].phases)
     out = []
     for i, s in enumerate(sequences):
@@ -47,10 +46,8 @@ def register_cycles(sequences) -> list[int]:
         p = np.asarray(s.phases)
         shift = [r for r in range(len(p)) if len(p) == len(ref) and np.array_equal(np.roll(p, -r), ref)]
         if not shift:
-            def show(x):
-                return " ".join(names.get(int(c), str(int(c))) for c in x)
-            raise MotionError(f"cycle {i} has the support pattern [{show(p)}], not that of cycle 0 "
-                              f"[{show(ref)}]; only cycles of one pattern blend without sliding")
+            raise MotionError(f"cycle {i} has the support pattern [{' '.join(s.names())}], not that of cycle 0 "
+                              f"[{' '.join(sequences[0].names())}]; only cycles of one pattern blend without sliding")
         out.append(shift[0])
     return out
 
@@ -125,9 +122,8 @@ def blend_cycles(motions, weights, sequences=None, fps: float | None = None, con
     # integrate the blended displacement over each frame in the character's frame (xform.compose chained)
     step = np.einsum("c,cfk->fk", w, delta)
     heading = np.concatenate([[0.0], np.cumsum(step[:, 2])])
-    c, s_ = np.cos(heading[:-1]), np.sin(heading[:-1])
-    move = np.stack([c * step[:, 0] - s_ * step[:, 1], s_ * step[:, 0] + c * step[:, 1]], axis=1)
-    xy = np.concatenate([np.zeros((1, 2)), np.cumsum(move, axis=0)])
+    ground = np.concatenate([np.zeros((frames, 2)), heading[:-1, None]], axis=1)
+    xy = np.concatenate([np.zeros((1, 2)), np.cumsum(xform.apply_vector(ground, step[:, :2]), axis=0)])
     q[:, 0] = quat.mul(quat.from_heading(heading), q[:, 0])
     root = np.concatenate([xy, (w @ z)[:, None]], axis=1)
     label = "+".join(f"{m.name or i}:{wi:.2f}" for i, (m, wi) in enumerate(zip(motions, w)))

@@ -291,7 +291,7 @@ class PhaseSequence:
         t = np.asarray(t, dtype=np.float64)
         k = np.asarray(self.index_at(t))
         n = len(self.phases)
-        share = np.array([0.5 if p in (DS, FLIGHT) else (1.0 if p == LS else 0.0) for p in self.phases])
+        share = np.where(self.phases == LS, 1.0, np.where(self.phases == RS, 0.0, 0.5))
         if self.cyclic:
             i = k % n
             prev, nxt = share[(i - 1) % n], share[(i + 1) % n]
