@@ -46,8 +46,9 @@ def register_cycles(sequences) -> list[int]:
         p = np.asarray(s.phases)
         shift = [r for r in range(len(p)) if len(p) == len(ref) and np.array_equal(np.roll(p, -r), ref)]
         if not shift:
-            raise MotionError(f"cycle {i} has the support pattern [{' '.join(s.names())}], not that of cycle 0 "
-                              f"[{' '.join(sequences[0].names())}]; only cycles of one pattern blend without sliding")
+            raise MotionError(f"cycle {i} has the support pattern [{' '.join(s.names())}], not that of "
+                              f"cycle 0 [{' '.join(sequences[0].names())}]; only cycles of one pattern "
+                              "blend without sliding")
         out.append(shift[0])
     return out
 
@@ -81,7 +82,8 @@ def blend_cycles(motions, weights, sequences=None, fps: float | None = None, con
         raise ParameterError("motions must be a non-empty list of Motion")
     w = np.asarray(weights, dtype=np.float64)
     if w.shape != (len(motions),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
-        raise ParameterError(f"weights must be {len(motions)} non-negative numbers with a positive sum, got {weights!r}")
+        raise ParameterError(f"weights must be {len(motions)} non-negative numbers with a positive sum, "
+                             f"got {weights!r}")
     w = w / w.sum()
     fps = float(motions[0].fps if fps is None else fps)
     if not (np.isfinite(fps) and fps > 0):
