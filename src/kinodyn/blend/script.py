@@ -139,9 +139,6 @@ class Script:
     path: Path | None = None
     mixes: tuple[MixEntry, ...] = ()
 
-    def with_sync(self, synchronize: bool) -> Script:
-        return replace(self, synchronize=synchronize)
-
 
 def _num(where: str, key: str, v, positive=False, nonneg=False, integer=False):
     if isinstance(v, bool) or not isinstance(v, (int, float)):

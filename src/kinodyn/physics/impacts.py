@@ -185,7 +185,7 @@ class ImpactLog:
         ev["last"] = time
         ev["peak"] = max(ev["peak"], force)
 
-    def close_all_matching(self, key: tuple) -> None:
+    def close(self, key: tuple) -> None:
         """Close one impact now (an instantaneous push)."""
         if key in self._open:
             self._close(key)
@@ -195,23 +195,17 @@ class ImpactLog:
         for key in [k for k, ev in self._open.items() if time - ev["last"] > self.gap]:
             self._close(key)
 
-    def close_all(self) -> None:
-        for key in list(self._open):
-            self._close(key)
+    @staticmethod
+    def _impact(ev) -> Impact:
+        point = ev["pw"] / ev["w"] if ev["w"] > 0 else ev["pw"]
+        return Impact(time=float(ev["time"]), character=ev["character"], body=ev["body"], point=point,
+                      impulse=ev["imp"].copy(), source=ev["source"], kind=ev["kind"],
+                      duration=float(ev["last"] - ev["time"]), peak_force=float(ev["peak"]))
 
     def _close(self, key) -> None:
-        ev = self._open.pop(key)
-        point = ev["pw"] / ev["w"] if ev["w"] > 0 else ev["pw"]
-        self.impacts.append(Impact(time=float(ev["time"]), character=ev["character"], body=ev["body"],
-                                   point=point, impulse=ev["imp"].copy(), source=ev["source"], kind=ev["kind"],
-                                   duration=float(ev["last"] - ev["time"]), peak_force=float(ev["peak"])))
+        self.impacts.append(self._impact(self._open.pop(key)))
         self.impacts.sort(key=lambda i: i.time)
 
     def all(self) -> list[Impact]:
         """Closed impacts and the ones still in contact, sorted by time."""
-        cur = []
-        for ev in self._open.values():
-            point = ev["pw"] / ev["w"] if ev["w"] > 0 else ev["pw"]
-            cur.append(Impact(float(ev["time"]), ev["character"], ev["body"], point, ev["imp"].copy(), ev["source"],
-                              ev["kind"], float(ev["last"] - ev["time"]), float(ev["peak"])))
-        return sorted(self.impacts + cur, key=lambda i: i.time)
+        return sorted(self.impacts + [self._impact(ev) for ev in self._open.values()], key=lambda i: i.time)

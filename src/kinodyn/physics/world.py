@@ -876,7 +876,7 @@ class World:
         d.qvel[:] += dv[0]
         self._log.add(("push", char.index, b, self._step), self.time, char.name, char.map.segments[b].name, p,
                       imp, "push", "push", 0.0, 0.0)
-        self._log.close_all_matching(("push", char.index, b, self._step))
+        self._log.close(("push", char.index, b, self._step))
 
     @property
     def impacts(self) -> list:
