@@ -40,6 +40,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from kinodyn import contacts
 from kinodyn.blend import phases as _phases
 from kinodyn.blend.phases import PhaseConfig, PhaseSequence
 from kinodyn.blend.sync import SyncConfig, Synchronizer
@@ -574,19 +575,15 @@ def blend_frames_fast(rot_db, i0, a, w, ref, wref) -> np.ndarray:
 # ----------------------------------------------------------------------------------------- library
 
 
-def _rest_height(motion, contact_config=None, feet=None) -> float:
-    """Height of a planted foot's lowest point in ``motion``: the median over its contact frames (the
-    lowest foot point of the whole clip when it never touches the ground)."""
-    from kinodyn import contacts
-
-    try:
-        c = contacts.detect(motion, contact_config or contacts.ContactConfig(), feet)
-    except UnknownNameError:
+def _rest_height(found) -> float:
+    """Height of a planted foot's lowest point from a clip's :class:`~kinodyn.contacts.FootContacts`:
+    the median over its contact frames (the lowest foot point of the whole clip when it never touches
+    the ground; 0 when the skeleton has no feet, ``found is None``)."""
+    if found is None:
         return 0.0
-    z = [c.lowest[s][c.labels[s], 2] for s in contacts.SIDES]
-    z = np.concatenate(z)
+    z = np.concatenate([found.lowest[s][found.labels[s], 2] for s in contacts.SIDES])
     if len(z) == 0:
-        return float(min(c.lowest[s][:, 2].min() for s in contacts.SIDES))
+        return float(min(found.lowest[s][:, 2].min() for s in contacts.SIDES))
     return float(np.median(z))
 
 
@@ -650,10 +647,18 @@ class ClipLibrary:
             raise MotionError(f"clip {name!r} needs at least 2 frames, got {motion.num_frames}")
         if not np.allclose(motion.skeleton.offsets, self.skeleton.offsets, atol=1e-6):
             motion = motion.retargeted(self.skeleton)
-        if sequence is None:
-            sequence = _phases.from_motion(motion, cyclic, self.contact_config, self.phase_config, feet)
-        elif sequence.cyclic != bool(cyclic):
+        if sequence is not None and sequence.cyclic != bool(cyclic):
             raise ParameterError(f"clip {name!r}: sequence.cyclic={sequence.cyclic} but cyclic={cyclic}")
+        # one contact detection gives the sequence (when not given) and the planted-foot height
+        try:
+            found = contacts.detect(motion, self.contact_config or contacts.ContactConfig(), feet)
+        except UnknownNameError:
+            if sequence is None:
+                raise
+            found = None
+        if sequence is None:
+            sequence = _phases.from_labels(found.labels["left"], found.labels["right"], motion.fps, cyclic,
+                                           self.phase_config)
         lr = quat.unroll(motion.local_rot)
         g = motion.ground()
         g[:, 2] = np.unwrap(g[:, 2])
@@ -672,7 +677,7 @@ class ClipLibrary:
         frame_phase = sequence.phase_at(motion.times()).astype(np.int8)
         self._parts.append(dict(rot=lr, z=z, ground=g, fps=motion.fps, cyclic=bool(cyclic), loop=loop,
                                 phase=frame_phase, share=sequence.left_share(motion.times()),
-                                rest=_rest_height(motion, self.contact_config, feet)))
+                                rest=_rest_height(found)))
         self._packed = None
         return len(self._names) - 1
 
@@ -1247,8 +1252,6 @@ class Mixer:
 
     def _pose_rest(self, rot, z) -> float:
         """Height of the lowest foot point of a standing pose (``rot (J, 4)`` facing frame, root height)."""
-        from kinodyn import contacts
-
         if self._legs is None:
             return 0.0
         pose = Motion(self.library.skeleton, np.array([[0.0, 0.0, z]]), rot[None], 60.0)
