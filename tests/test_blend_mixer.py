@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
-from kinodyn.blend import footlock
-from kinodyn.blend.mixer import (
-    BlendConfig,
-    ClipLibrary,
-    Mixer,
-    activation,
-    blend_rotations,
-    priority_weights,
-    smoothstep,
-)
+from kinodyn.blend import footlock, phases
+from kinodyn.blend.footlock import DROP_TIME, REACH_MARGIN, pin_feet_fast
+from kinodyn.blend.library import builtin
+from kinodyn.blend.mixer import BlendConfig, Mixer
+from kinodyn.blend.pose import blend_rotations
+from kinodyn.blend.weights import activation, priority_weights, smoothstep
 from kinodyn.errors import ParameterError, UnknownNameError
 from kinodyn.kinematics import fk_arrays
 from kinodyn.math import interp, quat
@@ -23,9 +21,138 @@ _TOL = 1e-9
 _ANGLE_TOL = 1e-9
 
 
+def _rotate(q, v):
+    """``quat.mul_vec`` for ``q (..., 4)`` and ``v (..., 3)`` written out (the reference's own)."""
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return np.stack([vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
+                     vz + w * tz + (x * ty - y * tx)], axis=-1)
+
+
+def constrain_reference(self, root, q, w, wn, phase, left, rest, dt: float, heading):
+    """Numpy reference of :meth:`kinodyn.blend.footlock.FootLock.constrain` (the same steps, array by
+    array); ``self`` is the lock."""
+
+    down_l = (phase == phases.LS) | (phase == phases.DS)
+    down_r = (phase == phases.RS) | (phase == phases.DS)
+    vote = np.stack([(w * down_l).sum(axis=1) + wn, (w * down_r).sum(axis=1) + wn], axis=1)
+    planted = vote >= 0.5
+    self.support = np.where(planted[:, 0] & (~planted[:, 1] | (left >= 0.5)), 1, np.where(planted[:, 1], 2, 0))
+    if (not np.any(planted) and not np.any(self.planted) and not np.any(self.release) and not np.any(self.drop)
+            and not np.any(self.release_z)):
+        return root, q
+    sk = self.skeleton
+    gr, gp = fk_arrays(root, q, sk.offsets, sk.parents)
+    xy = np.zeros((len(root), 2, 2))
+    zl = np.zeros((len(root), 2))
+    idx = np.zeros((len(root), 2), dtype=np.int64)
+    rows = np.arange(len(root))
+    for s, leg in enumerate(self.legs):
+        pts = [gp[:, leg.joints]]
+        if len(leg.ends):
+            par = sk.end_parents[leg.ends]
+            pts.append(gp[:, par] + _rotate(gr[:, par], sk.end_offsets[leg.ends]))
+        p = np.concatenate(pts, axis=1)
+        low = np.argmin(p[..., 2], axis=1)
+        # hysteresis: the point held so far stays held while it is within 1 cm of the lowest
+        old = self.foot_pt[:, s]
+        oldz = p[rows, np.maximum(old, 0), 2]
+        idx[:, s] = np.where((old >= 0) & (oldz - p[rows, low, 2] < 0.01), old, low)
+        xy[:, s] = p[rows, idx[:, s], :2]
+        zl[:, s] = p[rows, idx[:, s], 2]
+        # another point of a held foot takes over (heel to toe): it is held where the foot is held,
+        # i.e. with the same offset from the blended pose as the point it replaces
+        switch = self.planted[:, s] & planted[:, s] & (old >= 0) & (idx[:, s] != old)
+        if np.any(switch):
+            self.foot_xy[switch, s] = xy[switch, s] + self.foot_xy[switch, s] - p[rows, old, :2][switch]
+    # feet planted now are held where they are; the planted feet pull the root toward where they are
+    # held, each by the share of the weight it carries, faded out as its vote nears one half
+    rebase = planted & ~self.planted
+    self.foot_xy = np.where(rebase[..., None], xy, self.foot_xy)
+    # how far each ankle must go up so that a held foot does not sink below the height the actions'
+    # planted feet have; a lifted foot lets the correction go smoothly
+    released = self.planted & ~planted
+    decay = 0.5 ** (dt / self.config.release_halflife) if self.config.release_halflife > 0 else 0.0
+    sink = np.maximum(rest[:, None] - zl, 0.0)
+    self.release_z = np.where(planted, 0.0, np.where(released, sink, self.release_z * decay))
+    lift = np.where(planted, sink, self.release_z)
+    err = self.foot_xy - xy
+    share = np.stack([left, 1.0 - left], axis=1) * np.clip((vote - 0.5) * 4.0, 0.0, 1.0) * planted
+    target = (share[..., None] * err).sum(axis=1)
+    hl = self.config.root_halflife
+    alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
+    shift = alpha * target
+    root = root.copy()
+    root[:, :2] += shift
+    xy = xy + shift[:, None, :]
+    gp = gp.copy()
+    gp[..., :2] += shift[:, None, :]
+    # a foot that lifts off keeps the IK offset it had and lets it go smoothly (no pop)
+    released = self.planted & ~planted
+    self.release = np.where(released[..., None], self.foot_xy - xy, self.release * decay)
+    self.release = np.where(planted[..., None], 0.0, self.release)
+    # the pelvis comes down (at a bounded speed, and back up smoothly) as far as a held foot needs to
+    # stay within the leg's reach, up to max_pelvis_drop
+    need = np.zeros(len(root))
+    max_drop = self.config.max_pelvis_drop
+    if max_drop > 0:
+        for s, leg in enumerate(self.legs):
+            h = gp[:, leg.ankle, :2] + self.foot_xy[:, s] - xy[:, s] - gp[:, leg.hip, :2]
+            hd2 = (h * h).sum(axis=1)
+            lr2 = (REACH_MARGIN * self.reach[s]) ** 2
+            v = gp[:, leg.hip, 2] - gp[:, leg.ankle, 2] - lift[:, s]
+            d = np.where(hd2 < lr2, v - np.sqrt(np.maximum(lr2 - hd2, 0.0)), max_drop)
+            need = np.maximum(need, np.where(planted[:, s], d, 0.0))
+    rise = self.drop + max_drop * dt / DROP_TIME
+    self.drop = np.maximum(np.minimum(np.minimum(need, max_drop), rise), self.drop * decay)
+    root[:, 2] -= self.drop
+    gp[..., 2] -= self.drop[:, None]
+    # a planted foot never strays more than max_foot_offset from where the blend puts it: beyond
+    # that the blend has moved on to another stance and the foot slides along (bounded leg stretch)
+    off = self.foot_xy - xy
+    dist = np.linalg.norm(off, axis=-1)
+    lim = self.config.max_foot_offset
+    scale = np.where(planted & (dist > lim), lim / np.maximum(dist, 1e-12), 1.0)
+    # ... and never further than the leg reaches: the ankle moves by `off` horizontally, so keep
+    # the largest fraction of it that leaves the ankle within the leg's length of the hip (or
+    # within the blended pose's own hip-ankle distance when that is longer)
+    for s, leg in enumerate(self.legs):
+        hip = gp[:, leg.hip]
+        ank = gp[:, leg.ankle]
+        e = ank - hip
+        e[:, 2] += self.drop + lift[:, s]
+        reach = np.maximum(self.reach[s], np.linalg.norm(e, axis=1))
+        d = np.zeros_like(ank)
+        d[:, :2] = off[:, s] * scale[:, s, None]
+        # |e + lam d|^2 = reach^2  ->  a lam^2 + 2 b lam + c = 0
+        a_ = (d * d).sum(axis=1)
+        b_ = (e * d).sum(axis=1)
+        c_ = (e * e).sum(axis=1) - reach * reach
+        disc = np.maximum(b_ * b_ - a_ * c_, 0.0)
+        lam = np.where(a_ > 1e-12, (-b_ + np.sqrt(disc)) / np.maximum(a_, 1e-12), 1.0)
+        lam = np.clip(lam, 0.0, 1.0)
+        scale[:, s] *= np.where(planted[:, s], lam, 1.0)
+    if np.any(scale < 1.0):
+        self.foot_xy = xy + off * scale[..., None]
+    self.foot_pt = np.where(planted, idx, -1)
+    self.planted = planted
+    target = np.where(planted[..., None], self.foot_xy, xy + self.release)
+    lift = lift + self.drop[:, None]
+    for s, leg in enumerate(self.legs):
+        need = (np.linalg.norm(target[:, s] - xy[:, s], axis=-1) > 1e-6) | (np.abs(lift[:, s]) > 1e-9)
+        r = np.nonzero(need)[0]
+        if len(r):
+            q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=lift[r, s])
+    return root, q
+
+
+
 @pytest.fixture(scope="module")
 def lib():
-    return ClipLibrary.builtin(["idle", "walk", "run", "kick", "punch"])
+    return builtin(["idle", "walk", "run", "kick", "punch"])
 
 
 def test_activation_follows_figure_2():
@@ -231,18 +358,17 @@ def test_errors_name_the_problem(lib):
 
 
 def test_compiled_frame_blend_matches_numpy(lib):
-    from kinodyn.blend.mixer import blend_frames, blend_frames_fast
+    from kinodyn.blend.pose import blend_frames, blend_frames_fast
 
-    P = lib._pack()
     rng = np.random.default_rng(7)
     n, s = 40, 3
-    i0 = rng.integers(0, len(P["z"]) - 1, (n, s))
+    i0 = rng.integers(0, len(lib.z) - 1, (n, s))
     a = rng.random((n, s))
     act = rng.random((n, s)) * (rng.random((n, s)) > 0.3)
     w, wn = priority_weights(act, rng.integers(0, 2, (n, s)).astype(float))
     ref = quat.from_rotvec(rng.normal(0, 0.3, (lib.skeleton.num_joints, 3)))
-    q1 = blend_frames(P["rot"], i0, a, w, ref, wn)
-    q2 = blend_frames_fast(P["rot"], i0, a, w, ref, wn)
+    q1 = blend_frames(lib.rot, i0, a, w, ref, wn)
+    q2 = blend_frames_fast(lib.rot, i0, a, w, ref, wn)
     assert quat.angle_between(q1, q2).max() < 1e-12
 
 
@@ -250,7 +376,9 @@ def _crowd_poses(lib, compiled: bool, synchronize: bool = True, n: int = 6, fram
     """A small crowd with restarts, stops and higher-priority actions; every frame's poses."""
     rng = np.random.default_rng(3)
     mx = Mixer(lib, n, BlendConfig(synchronize=synchronize, max_actions=5))
-    mx._compiled = compiled
+    if not compiled:   # the numpy references of the weights and of the support constraints
+        mx.compiled = False
+        mx.footlock.constrain = functools.partial(constrain_reference, mx.footlock)
     for i in range(n):
         mx.start("walk", character=i, priority=1, speed=float(rng.uniform(0.85, 1.15)), key="walk")
         mx.start("run", character=i, priority=1, speed=float(rng.uniform(0.9, 1.1)), key="run")
@@ -281,7 +409,7 @@ def test_compiled_mixer_matches_numpy_reference(synchronize):
     """The compiled per-frame path (weights, support constraints) gives the poses of the numpy
     reference path, and the stored root positions of that reference (a change of behaviour must update
     them knowingly)."""
-    lib = ClipLibrary.builtin(["idle", "walk", "run", "punch", "kick", "jump"])
+    lib = builtin(["idle", "walk", "run", "punch", "kick", "jump"])
     r_fast, q_fast = _crowd_poses(lib, True, synchronize)
     r_ref, q_ref = _crowd_poses(lib, False, synchronize)
     np.testing.assert_allclose(r_fast, r_ref, atol=_TOL, rtol=0, err_msg="root")
@@ -308,7 +436,7 @@ def test_figure_script_matches_the_stored_root_path():
 def test_a_cyclic_clip_that_misses_its_loop_point_is_closed():
     """A captured cycle whose last frame misses its first by a few degrees and centimetres loops without
     a jump: the mismatch is spread over the clip (half off the first frame, half onto the last)."""
-    from kinodyn.blend.mixer import _close_loop
+    from kinodyn.clips import close_loop as _close_loop
     from kinodyn.data import library as L
 
     walk = L.load("walk")
@@ -365,7 +493,7 @@ def test_the_pelvis_lowers_to_keep_a_held_foot_within_reach(lib):
                 mx.start("kick", key="k", priority=2)
                 mx.stop("w")
             mx.step(1 / 60)
-            drops.append(float(mx._drop[0]))
+            drops.append(float(mx.footlock.drop[0]))
         return np.array(drops)
 
     cfg = BlendConfig()

@@ -10,9 +10,11 @@ import pytest
 
 from kinodyn import contacts
 from kinodyn.blend import phases
-from kinodyn.blend.mixer import BlendConfig, ClipLibrary, Mixer
+from kinodyn.blend.library import add_blend, add_clip, sequence
+from kinodyn.blend.mixer import BlendConfig, Mixer
 from kinodyn.blend.parametric import blend_cycles, register_cycles
 from kinodyn.blend.phases import DS, LS, RS
+from kinodyn.clips import ClipStore
 from kinodyn.errors import MotionError, ParameterError
 
 #: One frame at 60 fps (seconds): detected element boundaries fall on frames.
@@ -93,16 +95,18 @@ def test_a_blended_cycle_plays_in_the_mixer_like_any_clip(cycles):
     from kinodyn.data import library as L
 
     walk, slow = cycles
-    lib = ClipLibrary(walk.skeleton)
-    lib.add("walk", walk, cyclic=True)
-    lib.add("slow", slow, cyclic=True)
-    lib.add("idle", L.load("idle"), cyclic=True)
-    lib.add("turn", L.load("turn_left"))
-    i = lib.add_blend("brisk", {"walk": 0.5, "slow": 0.5})
-    assert lib.names[i] == "brisk" and lib.cyclic("brisk")
-    assert list(lib.sequence("brisk").phases[:4]) in ([DS, LS, DS, RS], [DS, RS, DS, LS])
+    lib = ClipStore.empty(walk.skeleton)
+    lib = add_clip(lib, "walk", walk, cyclic=True)
+    lib = add_clip(lib, "slow", slow, cyclic=True)
+    lib = add_clip(lib, "idle", L.load("idle"), cyclic=True)
+    lib = add_clip(lib, "turn", L.load("turn_left"))
+    before = lib
+    lib = add_blend(lib, "brisk", {"walk": 0.5, "slow": 0.5})
+    assert len(before) == 4 and "brisk" not in before.names   # stores are frozen: a new one comes back
+    assert lib.names[-1] == "brisk" and lib.cyclic("brisk")
+    assert list(sequence(lib, "brisk").phases[:4]) in ([DS, LS, DS, RS], [DS, RS, DS, LS])
     with pytest.raises(MotionError, match="'turn' is not cyclic"):
-        lib.add_blend("bad", {"walk": 0.5, "turn": 0.5})
+        add_blend(lib, "bad", {"walk": 0.5, "turn": 0.5})
     mx = Mixer(lib, 1, BlendConfig(), record=True)
     mx.start("walk", key="w", priority=1)
     roots = []

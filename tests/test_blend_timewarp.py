@@ -116,7 +116,7 @@ def test_played_warp_is_continuous_in_value_and_speed():
     from kinodyn.blend.script import run_script
 
     r = run_script(transition_script())
-    timing = r.mixer.chars[0].planner.timing_history
+    timing = r.timing
     jumps = total = 0
     for key, tm in timing.items():
         segs = tm.segments

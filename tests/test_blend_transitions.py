@@ -26,7 +26,7 @@ def _no_foot_under_two_constraints(result):
     """At no frame do two contributing actions put different single feet down (RS with LS)."""
     from kinodyn.blend.plots import action_phase_track
 
-    keys = list(result.mixer.chars[0].history)
+    keys = list(result.actions)
     tracks = [action_phase_track(result, k) for k in keys]
     rs = np.zeros(result.motion.num_frames, bool)
     ls = np.zeros_like(rs)

@@ -14,9 +14,16 @@ import numba
 import numpy as np
 
 from kinodyn.math import quat
+from kinodyn.math.kernels import qmul, qrot_add
 
-__all__ = ["forward_kinematics", "fk_arrays", "end_site_positions", "linear_velocity", "angular_velocity",
-           "joint_velocities"]
+__all__ = [
+    "angular_velocity",
+    "end_site_positions",
+    "fk_arrays",
+    "forward_kinematics",
+    "joint_velocities",
+    "linear_velocity",
+]
 
 
 @numba.njit(cache=True, parallel=True)
@@ -42,19 +49,8 @@ def fk_link(gr, gp, p, j, q, v):  # pragma: no cover - compiled
     ``v (3,)`` local offset of joint ``j`` whose parent is ``p``.
     """
     aw, ax, ay, az = gr[p, 0], gr[p, 1], gr[p, 2], gr[p, 3]
-    bw, bx, by, bz = q[0], q[1], q[2], q[3]
-    gr[j, 0] = aw * bw - ax * bx - ay * by - az * bz
-    gr[j, 1] = aw * bx + ax * bw + ay * bz - az * by
-    gr[j, 2] = aw * by - ax * bz + ay * bw + az * bx
-    gr[j, 3] = aw * bz + ax * by - ay * bx + az * bw
-    vx, vy, vz = v[0], v[1], v[2]
-    # R(a) v = v + 2w (u x v) + 2 u x (u x v), with t = 2 (u x v)
-    tx = 2.0 * (ay * vz - az * vy)
-    ty = 2.0 * (az * vx - ax * vz)
-    tz = 2.0 * (ax * vy - ay * vx)
-    gp[j, 0] = gp[p, 0] + vx + aw * tx + (ay * tz - az * ty)
-    gp[j, 1] = gp[p, 1] + vy + aw * ty + (az * tx - ax * tz)
-    gp[j, 2] = gp[p, 2] + vz + aw * tz + (ax * ty - ay * tx)
+    gr[j, 0], gr[j, 1], gr[j, 2], gr[j, 3] = qmul(aw, ax, ay, az, q[0], q[1], q[2], q[3])
+    gp[j, 0], gp[j, 1], gp[j, 2] = qrot_add(gp[p, 0], gp[p, 1], gp[p, 2], aw, ax, ay, az, v[0], v[1], v[2])
 
 
 def fk_arrays(root_pos, local_rot, offsets, parents, translations=None) -> tuple[np.ndarray, np.ndarray]:

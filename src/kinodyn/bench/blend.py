@@ -9,7 +9,7 @@ Measures, on the built-in clips:
   time warps, weights, sampling, blending, support constraints) with 3 actions contributing to every
   character; ``characters_at_60fps`` is how many such characters one core mixes at 60 frames per
   second (the frame budget divided by that cost, measured at ``N`` characters).
-- the foot sliding of the figure 12/13 script (:mod:`kinodyn.blend.demo`) with and without
+- the foot sliding of the figure 12/13 script (:mod:`kinodyn.blend.transitions`) with and without
   synchronization: ``sliding_ratio`` (unsynchronized over synchronized), ``sliding_cm_s_synced``.
 
 Everything runs in this process on one thread (numba kernels included); absolute times are noisy, the
@@ -28,9 +28,9 @@ __all__ = ["crowd_benchmark", "run", "sliding_benchmark"]
 
 
 def _library():
-    from kinodyn.blend.mixer import ClipLibrary
+    from kinodyn.blend.library import builtin
 
-    return ClipLibrary.builtin(["idle", "walk", "run", "punch", "kick", "jump"])
+    return builtin(["idle", "walk", "run", "punch", "kick", "jump"])
 
 
 def crowd_benchmark(n: int, seconds: float, synchronize: bool = True, seed: int = 0, library=None) -> dict:
@@ -40,7 +40,7 @@ def crowd_benchmark(n: int, seconds: float, synchronize: bool = True, seed: int 
     Returns timings: ``frame_ms`` (mean per frame), ``us_per_char_frame``, ``updates`` (step entries),
     ``us_per_update`` (Python time of the updates), ``frames``.
     """
-    from kinodyn.blend import mixer as M
+    from kinodyn.blend.character import Character
     from kinodyn.blend.mixer import BlendConfig, Mixer
 
     lib = library or _library()
@@ -54,7 +54,7 @@ def crowd_benchmark(n: int, seconds: float, synchronize: bool = True, seed: int 
     for _ in range(30):  # everyone started and ramped in
         mx.step(dt)
     upd = {"t": 0.0, "n": 0}
-    orig = M._Character.advance
+    orig = Character.advance
 
     def timed(self, t):
         t0 = time.perf_counter()
@@ -62,7 +62,7 @@ def crowd_benchmark(n: int, seconds: float, synchronize: bool = True, seed: int 
         upd["t"] += time.perf_counter() - t0
         upd["n"] += 1
 
-    M._Character.advance = timed
+    Character.advance = timed
     try:
         frames = int(round(seconds * 60))
         restart = rng.integers(0, 120, n)  # each character restarts its run every ~2 s, staggered
@@ -78,7 +78,7 @@ def crowd_benchmark(n: int, seconds: float, synchronize: bool = True, seed: int 
             mx.step(dt)
         el = time.perf_counter() - t0
     finally:
-        M._Character.advance = orig
+        Character.advance = orig
     w = [len(c.actions) for c in mx.chars]
     return {"frame_ms": 1e3 * el / frames, "us_per_char_frame": 1e6 * el / frames / n, "frames": frames,
             "updates": upd["n"], "us_per_update": 1e6 * upd["t"] / max(upd["n"], 1),
@@ -87,7 +87,7 @@ def crowd_benchmark(n: int, seconds: float, synchronize: bool = True, seed: int 
 
 def sliding_benchmark() -> dict:
     """Foot sliding of the figure 12/13 script with and without synchronization (see the demo)."""
-    from kinodyn.blend.demo import sliding_figures, transition_script
+    from kinodyn.blend.transitions import sliding_figures, transition_script
 
     return sliding_figures(transition_script())
 

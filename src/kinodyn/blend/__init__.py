@@ -7,13 +7,16 @@ do not slide when a motion with the left foot down meets one with the right foot
 Modules: :mod:`~kinodyn.blend.phases` (sequences, the algebra, extension: sections 4.1-4.3),
 :mod:`~kinodyn.blend.sync` (chronological organization, section 5.1, appendix A),
 :mod:`~kinodyn.blend.timewarp` (durations and time warp, 5.2-5.3), :mod:`~kinodyn.blend.mixer`
-(actions, ramps, priorities, blending), :mod:`~kinodyn.blend.footlock` (support constraints after
-blending), :mod:`~kinodyn.blend.parametric` (cycles blended by weights, a parametric model that adapts
+(the mixer) with :mod:`~kinodyn.blend.weights` (ramps, priorities), :mod:`~kinodyn.blend.pose` (pose
+blending), :mod:`~kinodyn.blend.actions`, :mod:`~kinodyn.blend.character` (per-character state) and
+:mod:`~kinodyn.blend.footlock` (support constraints after blending), :mod:`~kinodyn.blend.library`
+(clips with their support, in a :class:`kinodyn.clips.ClipStore`), :mod:`~kinodyn.blend.parametric` (cycles blended by weights, a parametric model that adapts
 its sequence with its motion), :mod:`~kinodyn.blend.script` (YAML scripts),
 :mod:`~kinodyn.blend.plots` (figures 9 and 10).
 """
 
-from kinodyn.blend.mixer import BlendConfig, ClipLibrary, Mixer, Pose
+from kinodyn.blend.library import add_blend, add_clip
+from kinodyn.blend.mixer import BlendConfig, Mixer, Pose
 from kinodyn.blend.parametric import blend_cycles
 from kinodyn.blend.phases import (
     DS,
@@ -30,6 +33,7 @@ from kinodyn.blend.phases import (
 from kinodyn.blend.script import BlendResult, Script, load_script, parse_script, run_script
 from kinodyn.blend.sync import SyncConfig, Synchronizer, resolve
 from kinodyn.blend.timewarp import WarpConfig, WarpPlanner
+from kinodyn.clips import ClipStore
 
 __all__ = [
     "DS",
@@ -39,7 +43,7 @@ __all__ = [
     "RS",
     "BlendConfig",
     "BlendResult",
-    "ClipLibrary",
+    "ClipStore",
     "Mixer",
     "Phase",
     "PhaseConfig",
@@ -50,6 +54,8 @@ __all__ = [
     "Synchronizer",
     "WarpConfig",
     "WarpPlanner",
+    "add_blend",
+    "add_clip",
     "blend_cycles",
     "combine",
     "compatible",

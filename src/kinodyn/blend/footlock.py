@@ -18,8 +18,10 @@ knee, ankle) then puts the feet where they are held, keeping each foot's world o
 foot is beyond a straight leg's reach (the back foot at push-off) the pelvis comes down a little, and
 beyond that the foot follows the pose.
 
-The two-bone solver is the analytic one of Daniel Holden's Motion-Matching code (``ik_two_bone``),
-batch-first and skeleton-agnostic: it works on world positions and rotations from forward kinematics.
+The two-bone solver is :func:`kinodyn.ik.two_bone_delta` (the analytic one of Daniel Holden's
+Motion-Matching code, skeleton-agnostic). :class:`FootLock` holds the per-character state of the lock
+(which feet are held, where, the fading corrections) and applies it every frame with compiled kernels;
+the numpy reference of the same steps lives with the tests.
 
 Shapes: ``M`` poses, ``J`` joints. Units: metres.
 """
@@ -28,12 +30,16 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from kinodyn.errors import UnknownNameError
+from kinodyn.ik import two_bone_delta, two_bone_delta_kernel
+from kinodyn.kinematics import fk_link
 from kinodyn.math import quat
+from kinodyn.math.kernels import qmul, qrot
 
-__all__ = ["Leg", "legs", "pin_feet", "pin_feet_fast", "two_bone_ik"]
+__all__ = ["FootLock", "Leg", "legs", "pin_feet", "pin_feet_fast"]
 
 
 class Leg(NamedTuple):
@@ -72,47 +78,6 @@ def legs(skeleton) -> tuple[Leg, Leg] | None:
     return out[0], out[1]
 
 
-def _norm(v, eps=1e-9):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.maximum(n, eps), n[..., 0]
-
-
-def two_bone_ik(a, b, c, t, a_gr, b_gr, fallback_axis, eps: float = 1e-5):
-    """Rotations that bring the end ``c`` of the chain ``a -> b -> c`` to the target ``t``.
-
-    Args:
-        a, b, c: ``(M, 3)`` world positions of the upper joint, middle joint and end.
-        t: ``(M, 3)`` targets (clamped to the reachable distance).
-        a_gr, b_gr: ``(M, 4)`` world rotations of the upper and middle joints.
-        fallback_axis: ``(M, 3)`` world bend axis used when the chain is straight.
-
-    Returns:
-        ``(da, db)``: ``(M, 4)`` rotations to right-multiply onto the *local* rotations of ``a`` and ``b``.
-    """
-    lab = np.linalg.norm(b - a, axis=-1)
-    lcb = np.linalg.norm(b - c, axis=-1)
-    lat = np.clip(np.linalg.norm(t - a, axis=-1), eps, lab + lcb - eps)
-    ca, _ = _norm(c - a)
-    ba, _ = _norm(b - a)
-    ab, _ = _norm(a - b)
-    cb, _ = _norm(c - b)
-    ta, _ = _norm(t - a)
-    ac_ab_0 = np.arccos(np.clip(np.sum(ca * ba, axis=-1), -1.0, 1.0))
-    ba_bc_0 = np.arccos(np.clip(np.sum(ab * cb, axis=-1), -1.0, 1.0))
-    # the angle between c - a and t - a is often tiny: atan2 keeps it accurate where arccos would not
-    ac_at_0 = np.arctan2(np.linalg.norm(np.cross(ca, ta), axis=-1), np.sum(ca * ta, axis=-1))
-    ac_ab_1 = np.arccos(np.clip((lcb * lcb - lab * lab - lat * lat) / (-2.0 * lab * lat), -1.0, 1.0))
-    ba_bc_1 = np.arccos(np.clip((lat * lat - lab * lab - lcb * lcb) / (-2.0 * lab * lcb), -1.0, 1.0))
-    axis0, n0 = _norm(np.cross(c - a, b - a))
-    axis0 = np.where((n0 < 1e-6)[:, None], fallback_axis, axis0)
-    axis1, n1 = _norm(np.cross(c - a, t - a))
-    axis1 = np.where((n1 < 1e-9)[:, None], axis0, axis1)
-    r0 = quat.from_axis_angle(quat.inv_mul_vec(a_gr, axis0), ac_ab_1 - ac_ab_0)
-    r1 = quat.from_axis_angle(quat.inv_mul_vec(b_gr, axis0), ba_bc_1 - ba_bc_0)
-    r2 = quat.from_axis_angle(quat.inv_mul_vec(a_gr, axis1), ac_at_0)
-    return quat.mul(r0, r2), r1
-
-
 def pin_feet(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading, dz=None):
     """Move the ankle of ``leg`` horizontally by ``target_xy - lowest_xy`` (and up by ``dz``) for poses
     ``rows``.
@@ -138,7 +103,7 @@ def pin_feet(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading, dz=None):
     if dz is not None:
         t[:, 2] += dz
     lateral = np.stack([-np.sin(heading), np.cos(heading), np.zeros_like(heading)], axis=-1)
-    da, db = two_bone_ik(a, b, c, t, gr[rows, leg.hip], gr[rows, leg.knee], lateral)
+    da, db = two_bone_delta(a, b, c, t, gr[rows, leg.hip], gr[rows, leg.knee], lateral)
     hip_l = quat.mul(q[rows, leg.hip], da)
     knee_l = quat.mul(q[rows, leg.knee], db)
     hip_parent = quat.mul_inv(gr[rows, leg.hip], q[rows, leg.hip])
@@ -150,100 +115,26 @@ def pin_feet(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading, dz=None):
 
 
 # ----------------------------------------------------------------------------------------- compiled
-import numba
-
-
-@numba.njit(cache=True, inline="always")
-def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):  # pragma: no cover - compiled
-    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3, a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
-            a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1, a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
-
-
-@numba.njit(cache=True, inline="always")
-def _qrot_inv(q0, q1, q2, q3, x, y, z):  # pragma: no cover - compiled
-    # R(q)^T v = v + 2w (v x u) + 2 u x (u x v) with u = -(q1, q2, q3)
-    u1, u2, u3 = -q1, -q2, -q3
-    t1 = 2.0 * (u2 * z - u3 * y)
-    t2 = 2.0 * (u3 * x - u1 * z)
-    t3 = 2.0 * (u1 * y - u2 * x)
-    return (x + q0 * t1 + (u2 * t3 - u3 * t2), y + q0 * t2 + (u3 * t1 - u1 * t3),
-            z + q0 * t3 + (u1 * t2 - u2 * t1))
-
-
-@numba.njit(cache=True, inline="always")
-def _axis_angle(x, y, z, ang):  # pragma: no cover - compiled
-    n = np.sqrt(x * x + y * y + z * z)
-    if n < 1e-12:
-        return 1.0, 0.0, 0.0, 0.0
-    s = np.sin(0.5 * ang) / n
-    return np.cos(0.5 * ang), x * s, y * s, z * s
-
-
-@numba.njit(cache=True, inline="always")
-def _unit(x, y, z):  # pragma: no cover - compiled
-    n = np.sqrt(x * x + y * y + z * z)
-    if n < 1e-9:
-        return x, y, z, n
-    return x / n, y / n, z / n, n
-
-
-@numba.njit(cache=True, inline="always")
-def _acos(x):  # pragma: no cover - compiled
-    return np.arccos(min(1.0, max(-1.0, x)))
 
 
 @numba.njit(cache=True)
 def _pin_kernel(q, gr, gp, hip, knee, ankle, rows, target_xy, lowest_xy, heading, dz, eps):  # pragma: no cover
     for m in range(rows.shape[0]):
         n = rows[m]
-        ax, ay, az = gp[n, hip, 0], gp[n, hip, 1], gp[n, hip, 2]
-        bx, by, bz = gp[n, knee, 0], gp[n, knee, 1], gp[n, knee, 2]
         cx, cy, cz = gp[n, ankle, 0], gp[n, ankle, 1], gp[n, ankle, 2]
-        tx = cx + target_xy[m, 0] - lowest_xy[m, 0]
-        ty = cy + target_xy[m, 1] - lowest_xy[m, 1]
-        tz = cz + dz[m]
-        lab = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
-        lcb = np.sqrt((bx - cx) ** 2 + (by - cy) ** 2 + (bz - cz) ** 2)
-        lat = np.sqrt((tx - ax) ** 2 + (ty - ay) ** 2 + (tz - az) ** 2)
-        lat = min(max(lat, eps), lab + lcb - eps)
-        cax, cay, caz, _ = _unit(cx - ax, cy - ay, cz - az)
-        bax, bay, baz, _ = _unit(bx - ax, by - ay, bz - az)
-        abx, aby, abz, _ = _unit(ax - bx, ay - by, az - bz)
-        cbx, cby, cbz, _ = _unit(cx - bx, cy - by, cz - bz)
-        tax, tay, taz, _ = _unit(tx - ax, ty - ay, tz - az)
-        ac_ab_0 = _acos(cax * bax + cay * bay + caz * baz)
-        ba_bc_0 = _acos(abx * cbx + aby * cby + abz * cbz)
-        xx, xy_, xz = cay * taz - caz * tay, caz * tax - cax * taz, cax * tay - cay * tax
-        ac_at_0 = np.arctan2(np.sqrt(xx * xx + xy_ * xy_ + xz * xz), cax * tax + cay * tay + caz * taz)
-        ac_ab_1 = _acos((lcb * lcb - lab * lab - lat * lat) / (-2.0 * lab * lat))
-        ba_bc_1 = _acos((lat * lat - lab * lab - lcb * lcb) / (-2.0 * lab * lcb))
-        # axis0 = (c - a) x (b - a), axis1 = (c - a) x (t - a)
-        ux, uy, uz = cx - ax, cy - ay, cz - az
-        vx, vy, vz = bx - ax, by - ay, bz - az
-        a0x, a0y, a0z, n0 = _unit(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx)
-        if n0 < 1e-6:
-            a0x, a0y, a0z = -np.sin(heading[m]), np.cos(heading[m]), 0.0
-        wx, wy, wz = tx - ax, ty - ay, tz - az
-        a1x, a1y, a1z, n1 = _unit(uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx)
-        if n1 < 1e-9:
-            a1x, a1y, a1z = a0x, a0y, a0z
         A0, A1, A2, A3 = gr[n, hip, 0], gr[n, hip, 1], gr[n, hip, 2], gr[n, hip, 3]
-        B0, B1, B2, B3 = gr[n, knee, 0], gr[n, knee, 1], gr[n, knee, 2], gr[n, knee, 3]
-        lx, ly, lz = _qrot_inv(A0, A1, A2, A3, a0x, a0y, a0z)
-        r0 = _axis_angle(lx, ly, lz, ac_ab_1 - ac_ab_0)
-        lx, ly, lz = _qrot_inv(B0, B1, B2, B3, a0x, a0y, a0z)
-        r1 = _axis_angle(lx, ly, lz, ba_bc_1 - ba_bc_0)
-        lx, ly, lz = _qrot_inv(A0, A1, A2, A3, a1x, a1y, a1z)
-        r2 = _axis_angle(lx, ly, lz, ac_at_0)
-        da = _qmul(r0[0], r0[1], r0[2], r0[3], r2[0], r2[1], r2[2], r2[3])
-        hl = _qmul(q[n, hip, 0], q[n, hip, 1], q[n, hip, 2], q[n, hip, 3], da[0], da[1], da[2], da[3])
-        kl = _qmul(q[n, knee, 0], q[n, knee, 1], q[n, knee, 2], q[n, knee, 3], r1[0], r1[1], r1[2], r1[3])
+        da, r1 = two_bone_delta_kernel(gp[n, hip, 0], gp[n, hip, 1], gp[n, hip, 2], gp[n, knee, 0], gp[n, knee, 1],
+                                       gp[n, knee, 2], cx, cy, cz, cx + target_xy[m, 0] - lowest_xy[m, 0],
+                                       cy + target_xy[m, 1] - lowest_xy[m, 1], cz + dz[m], A0, A1, A2, A3,
+                                       gr[n, knee, 0], gr[n, knee, 1], gr[n, knee, 2], gr[n, knee, 3],
+                                       -np.sin(heading[m]), np.cos(heading[m]), 0.0, eps)
+        hl = qmul(q[n, hip, 0], q[n, hip, 1], q[n, hip, 2], q[n, hip, 3], da[0], da[1], da[2], da[3])
+        kl = qmul(q[n, knee, 0], q[n, knee, 1], q[n, knee, 2], q[n, knee, 3], r1[0], r1[1], r1[2], r1[3])
         # parent of the hip in world = gr[hip] * inv(q[hip])
-        P = _qmul(A0, A1, A2, A3, q[n, hip, 0], -q[n, hip, 1], -q[n, hip, 2], -q[n, hip, 3])
-        hw = _qmul(P[0], P[1], P[2], P[3], hl[0], hl[1], hl[2], hl[3])
-        kw = _qmul(hw[0], hw[1], hw[2], hw[3], kl[0], kl[1], kl[2], kl[3])
-        fl = _qmul(kw[0], -kw[1], -kw[2], -kw[3], gr[n, ankle, 0], gr[n, ankle, 1], gr[n, ankle, 2],
-                   gr[n, ankle, 3])
+        P = qmul(A0, A1, A2, A3, q[n, hip, 0], -q[n, hip, 1], -q[n, hip, 2], -q[n, hip, 3])
+        hw = qmul(P[0], P[1], P[2], P[3], hl[0], hl[1], hl[2], hl[3])
+        kw = qmul(hw[0], hw[1], hw[2], hw[3], kl[0], kl[1], kl[2], kl[3])
+        fl = qmul(kw[0], -kw[1], -kw[2], -kw[3], gr[n, ankle, 0], gr[n, ankle, 1], gr[n, ankle, 2], gr[n, ankle, 3])
         for c in range(4):
             q[n, hip, c] = hl[c]
             q[n, knee, c] = kl[c]
@@ -258,3 +149,351 @@ def pin_feet_fast(q, gr, gp, leg: Leg, rows, target_xy, lowest_xy, heading, eps:
                     np.ascontiguousarray(target_xy, dtype=np.float64), np.ascontiguousarray(lowest_xy, dtype=np.float64),
                     np.ascontiguousarray(heading, dtype=np.float64), np.ascontiguousarray(dz), eps)
     return q
+
+
+@numba.njit(cache=True)
+def _support_kernel(w, wn, phase, left, support, planted, vote):  # pragma: no cover - compiled
+    """Planted feet, their votes and the foot carrying most weight of every character (the first part of
+    ``_constrain``)."""
+    n_chars, n_slots = w.shape
+    for n in range(n_chars):
+        sl = 0.0
+        sr = 0.0
+        for k in range(n_slots):
+            p = phase[n, k]
+            sl += w[n, k] if (p == 2 or p == 0) else 0.0   # LS or DS put the left foot down
+            sr += w[n, k] if (p == 1 or p == 0) else 0.0   # RS or DS put the right foot down
+        vote[n, 0] = sl + wn[n]
+        vote[n, 1] = sr + wn[n]
+        pl = vote[n, 0] >= 0.5
+        pr = vote[n, 1] >= 0.5
+        planted[n, 0] = pl
+        planted[n, 1] = pr
+        if pl and pr:
+            support[n] = 1 if left[n] >= 0.5 else 2
+        elif pl:
+            support[n] = 1
+        elif pr:
+            support[n] = 2
+        else:
+            support[n] = 0
+
+
+#: Fraction of a leg's length up to which the pelvis lowers to keep a held foot within reach (a knee
+#: that stays slightly bent keeps the two-bone solution well conditioned).
+REACH_MARGIN = 0.995
+#: Seconds the pelvis takes at least to come down by ``max_pelvis_drop`` (no sudden crouch).
+DROP_TIME = 0.2
+
+
+@numba.njit(cache=True, inline="always")
+def _hold_foot(n, s, gr, gp, planted, was_planted, rest, foot_pt, foot_xy, release_z, leg_joints, n_joints, end_par,
+               end_off, n_ends, decay, xy, lift, px, py, pz):  # pragma: no cover - compiled
+    """Which point of foot ``s`` of character ``n`` is held and where (heel-to-toe hysteresis), and how
+    far its ankle must go up (``lift``); ``px``, ``py``, ``pz`` are scratch space."""
+    m = 0
+    for i in range(n_joints[s]):
+        j = leg_joints[s, i]
+        px[m], py[m], pz[m] = gp[n, j, 0], gp[n, j, 1], gp[n, j, 2]
+        m += 1
+    for i in range(n_ends[s]):
+        j = end_par[s, i]
+        rx, ry, rz = qrot(gr[n, j, 0], gr[n, j, 1], gr[n, j, 2], gr[n, j, 3], end_off[s, i, 0], end_off[s, i, 1],
+                          end_off[s, i, 2])
+        px[m] = gp[n, j, 0] + rx
+        py[m] = gp[n, j, 1] + ry
+        pz[m] = gp[n, j, 2] + rz
+        m += 1
+    low = 0
+    for i in range(1, m):
+        if pz[i] < pz[low]:
+            low = i
+    # hysteresis: the point held so far stays held while it is within 1 cm of the lowest
+    old = foot_pt[n, s]
+    oldz = pz[max(old, 0)]
+    idx = old if (old >= 0 and oldz - pz[low] < 0.01) else low
+    xy[n, s, 0] = px[idx]
+    xy[n, s, 1] = py[idx]
+    if was_planted[n, s] and planted[n, s] and old >= 0 and idx != old:
+        foot_xy[n, s, 0] = xy[n, s, 0] + foot_xy[n, s, 0] - px[old]
+        foot_xy[n, s, 1] = xy[n, s, 1] + foot_xy[n, s, 1] - py[old]
+    foot_pt[n, s] = idx if planted[n, s] else -1
+    # feet planted now are held where they are
+    if planted[n, s] and not was_planted[n, s]:
+        foot_xy[n, s, 0] = xy[n, s, 0]
+        foot_xy[n, s, 1] = xy[n, s, 1]
+    # how far the ankle must go up so that a held foot does not sink below the height the actions'
+    # planted feet have; a lifted foot lets the correction go smoothly
+    sink = max(rest[n] - pz[idx], 0.0)
+    if planted[n, s]:
+        release_z[n, s] = 0.0
+        lift[n, s] = sink
+    elif was_planted[n, s]:
+        release_z[n, s] = sink
+        lift[n, s] = sink
+    else:
+        release_z[n, s] *= decay
+        lift[n, s] = release_z[n, s]
+
+
+@numba.njit(cache=True, inline="always")
+def _follow_feet(n, root, gp, chain, planted, was_planted, vote, left, foot_xy, release, xy, lift, hips, ankles, reach,
+                 alpha, decay, max_drop):  # pragma: no cover - compiled
+    """The root of character ``n`` follows its held feet; lifted feet let their IK offset fade out.
+    Returns how far the pelvis must come down for the legs to reach the held feet."""
+    # the planted feet pull the root toward where they are held, each by the share of the weight it
+    # carries, faded out as its vote nears one half
+    b0 = left[n] * min(max((vote[n, 0] - 0.5) * 4.0, 0.0), 1.0) if planted[n, 0] else 0.0
+    b1 = (1.0 - left[n]) * min(max((vote[n, 1] - 0.5) * 4.0, 0.0), 1.0) if planted[n, 1] else 0.0
+    gx = b0 * (foot_xy[n, 0, 0] - xy[n, 0, 0]) + b1 * (foot_xy[n, 1, 0] - xy[n, 1, 0])
+    gy = b0 * (foot_xy[n, 0, 1] - xy[n, 0, 1]) + b1 * (foot_xy[n, 1, 1] - xy[n, 1, 1])
+    sx, sy = alpha * gx, alpha * gy
+    root[n, 0] += sx
+    root[n, 1] += sy
+    gp[n, 0, 0] += sx
+    gp[n, 0, 1] += sy
+    for i in range(chain.shape[0]):
+        gp[n, chain[i], 0] += sx
+        gp[n, chain[i], 1] += sy
+    need_drop = 0.0
+    for s in range(2):
+        xy[n, s, 0] += sx
+        xy[n, s, 1] += sy
+        pl = planted[n, s]
+        # a foot that lifts off keeps the IK offset it had and lets it go smoothly (no pop)
+        if pl:
+            release[n, s, 0] = 0.0
+            release[n, s, 1] = 0.0
+        elif was_planted[n, s]:
+            release[n, s, 0] = foot_xy[n, s, 0] - xy[n, s, 0]
+            release[n, s, 1] = foot_xy[n, s, 1] - xy[n, s, 1]
+        else:
+            release[n, s, 0] *= decay
+            release[n, s, 1] *= decay
+        if pl and max_drop > 0.0:
+            # how far the pelvis must come down for the leg to reach where the foot is held
+            h, a = hips[s], ankles[s]
+            hx = gp[n, a, 0] + foot_xy[n, s, 0] - xy[n, s, 0] - gp[n, h, 0]
+            hy = gp[n, a, 1] + foot_xy[n, s, 1] - xy[n, s, 1] - gp[n, h, 1]
+            lr = REACH_MARGIN * reach[s]
+            hd2 = hx * hx + hy * hy
+            v = gp[n, h, 2] - gp[n, a, 2] - lift[n, s]
+            need_drop = max(need_drop, v - np.sqrt(lr * lr - hd2) if hd2 < lr * lr else max_drop)
+    return need_drop
+
+
+@numba.njit(cache=True, inline="always")
+def _reach_feet(n, root, gp, chain, planted, foot_xy, release, drop, xy, lift, hips, ankles, reach, need_drop, decay, lim,
+                max_drop, rise, target, need):  # pragma: no cover - compiled
+    """The pelvis of character ``n`` comes down as far as its held feet need (bounded), the held feet stay
+    within ``lim`` of the blend and the legs' reach; every foot's IK target and whether it needs IK."""
+    # the pelvis comes down (at a bounded speed) when a held foot needs it, and back up smoothly
+    dz = max(min(need_drop, max_drop, drop[n] + rise), drop[n] * decay)
+    drop[n] = dz
+    if dz > 0.0:
+        root[n, 2] -= dz
+        for i in range(chain.shape[0]):
+            gp[n, chain[i], 2] -= dz
+    for s in range(2):
+        ox = foot_xy[n, s, 0] - xy[n, s, 0]
+        oy = foot_xy[n, s, 1] - xy[n, s, 1]
+        if planted[n, s]:
+            # a planted foot never strays more than `lim` from where the blend puts it, nor further
+            # than the leg reaches
+            dist = np.sqrt(ox * ox + oy * oy)
+            scale = lim / max(dist, 1e-12) if dist > lim else 1.0
+            h, a = hips[s], ankles[s]
+            e0, e1 = gp[n, a, 0] - gp[n, h, 0], gp[n, a, 1] - gp[n, h, 1]
+            e2 = gp[n, a, 2] + dz + lift[n, s] - gp[n, h, 2]
+            ee = e0 * e0 + e1 * e1 + e2 * e2
+            r = max(reach[s], np.sqrt(ee))
+            d0, d1 = ox * scale, oy * scale
+            a_ = d0 * d0 + d1 * d1
+            b_ = e0 * d0 + e1 * d1
+            c_ = ee - r * r
+            disc = max(b_ * b_ - a_ * c_, 0.0)
+            lam = (-b_ + np.sqrt(disc)) / max(a_, 1e-12) if a_ > 1e-12 else 1.0
+            scale *= min(max(lam, 0.0), 1.0)
+            if scale < 1.0:
+                foot_xy[n, s, 0] = xy[n, s, 0] + ox * scale
+                foot_xy[n, s, 1] = xy[n, s, 1] + oy * scale
+            target[n, s, 0] = foot_xy[n, s, 0]
+            target[n, s, 1] = foot_xy[n, s, 1]
+        else:
+            target[n, s, 0] = xy[n, s, 0] + release[n, s, 0]
+            target[n, s, 1] = xy[n, s, 1] + release[n, s, 1]
+        lift[n, s] += dz
+        dx = target[n, s, 0] - xy[n, s, 0]
+        dy = target[n, s, 1] - xy[n, s, 1]
+        need[n, s] = abs(lift[n, s]) > 1e-9 or np.sqrt(dx * dx + dy * dy) > 1e-6
+
+
+@numba.njit(cache=True)
+def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, rest, was_planted, foot_pt, foot_xy,
+                 release, release_z, drop, leg_joints, n_joints, end_par, end_off, n_ends, hips, ankles, reach, alpha,
+                 decay, lim, max_drop, rise, target, xy, lift, need):  # pragma: no cover - compiled
+    """Where each foot is held and how far the root follows (the middle part of :meth:`FootLock.constrain`,
+    one pass per character). Forward kinematics fills ``gr``, ``gp`` for the joints of ``chain`` (the root,
+    the legs and their ancestors, parents first) only; ``root``, ``gp``, ``foot_pt``, ``foot_xy``, ``release``,
+    ``release_z``, ``drop`` are updated in place; ``target``, ``xy``, ``lift`` (how far each
+    ankle goes up) and ``need`` are outputs."""
+    n_chars = root.shape[0]
+    pz = np.empty(leg_joints.shape[1] + end_par.shape[1])
+    px = np.empty_like(pz)
+    py = np.empty_like(pz)
+    for n in range(n_chars):
+        # forward kinematics of the leg chains only
+        for c in range(4):
+            gr[n, 0, c] = q[n, 0, c]
+        for c in range(3):
+            gp[n, 0, c] = root[n, c]
+        for i in range(chain.shape[0]):
+            j = chain[i]
+            fk_link(gr[n], gp[n], parents[j], j, q[n, j], offsets[j])
+        for s in range(2):
+            _hold_foot(n, s, gr, gp, planted, was_planted, rest, foot_pt, foot_xy, release_z, leg_joints, n_joints,
+                       end_par, end_off, n_ends, decay, xy, lift, px, py, pz)
+        need_drop = _follow_feet(n, root, gp, chain, planted, was_planted, vote, left, foot_xy, release, xy, lift, hips,
+                                 ankles, reach, alpha, decay, max_drop)
+        _reach_feet(n, root, gp, chain, planted, foot_xy, release, drop, xy, lift, hips, ankles, reach, need_drop, decay,
+                    lim, max_drop, rise, target, need)
+
+
+class FootLock:
+    """Support constraints of ``N`` characters (mutable per-frame state: which feet are held and where).
+
+    Args:
+        skeleton: the characters' skeleton (its legs are found by :func:`legs`; without feet the lock
+            does nothing).
+        n_characters: ``N``.
+        config: the mixer's :class:`~kinodyn.blend.mixer.BlendConfig` (``root_halflife``,
+            ``release_halflife``, ``max_foot_offset``, ``max_pelvis_drop``).
+
+    Attributes:
+        support: ``(N,)`` planted foot carrying most weight: 0 none, 1 left, 2 right.
+        planted: ``(N, 2)`` left, right planted at the previous frame.
+        foot_pt: ``(N, 2)`` which point of each held foot is held (-1: none).
+        foot_xy: ``(N, 2, 2)`` where each planted foot's lowest point is held.
+        release: ``(N, 2, 2)`` IK offset fading out after a foot lifts off.
+        drop: ``(N,)`` how far the pelvis is lowered to reach the feet.
+        release_z: ``(N, 2)`` height correction fading out after a lift-off.
+        legs, reach: the legs (or ``None``) and each leg's hip-to-ankle rest length.
+    """
+
+    def __init__(self, skeleton, n_characters: int, config):
+        N = int(n_characters)
+        self.skeleton = skeleton
+        self.config = config
+        self.support = np.zeros(N, dtype=np.int64)
+        self.planted = np.zeros((N, 2), dtype=bool)
+        self.foot_pt = np.full((N, 2), -1, dtype=np.int64)
+        self.foot_xy = np.zeros((N, 2, 2))
+        self.release = np.zeros((N, 2, 2))
+        self.drop = np.zeros(N)
+        self.release_z = np.zeros((N, 2))
+        self.legs = legs(skeleton)
+        self.reach = None
+        if self.legs is not None:  # hip-to-ankle length of each leg (the rest bone lengths)
+            bl = skeleton.bone_lengths()
+            self.reach = [float(bl[leg.knee] + bl[leg.ankle]) for leg in self.legs]
+        self._arrays = None
+
+    def rest_of_pose(self, rot, z) -> float:
+        """Height of the lowest foot point of a standing pose (``rot (J, 4)`` facing frame, root height)."""
+        from kinodyn import contacts
+        from kinodyn.motion import Motion
+
+        if self.legs is None:
+            return 0.0
+        pose = Motion(self.skeleton, np.array([[0.0, 0.0, z]]), rot[None], 60.0)
+        return float(min(p[..., 2].min() for p in contacts.foot_points(pose).values()))
+
+    def leg_arrays(self):
+        """The legs' foot points as padded arrays for the compiled kernels (built once): ``(joints,
+        n_joints, end_parents, end_offsets, n_ends, hips, ankles, reach, chain, offsets, parents)``."""
+        if self._arrays is None:
+            sk = self.skeleton
+            nj = np.array([len(leg.joints) for leg in self.legs], dtype=np.int64)
+            ne = np.array([len(leg.ends) for leg in self.legs], dtype=np.int64)
+            joints = np.zeros((2, max(int(nj.max()), 1)), dtype=np.int64)
+            par = np.zeros((2, max(int(ne.max()), 1)), dtype=np.int64)
+            off = np.zeros((2, par.shape[1], 3))
+            for s, leg in enumerate(self.legs):
+                joints[s, :nj[s]] = leg.joints
+                if ne[s]:
+                    par[s, :ne[s]] = sk.end_parents[leg.ends]
+                    off[s, :ne[s]] = sk.end_offsets[leg.ends]
+            need = set()
+            for leg in self.legs:
+                for j in list(leg.joints) + list(sk.end_parents[leg.ends]) + [leg.hip, leg.knee]:
+                    j = int(j)
+                    while j > 0:
+                        need.add(j)
+                        j = int(sk.parents[j])
+            chain = np.array(sorted(need), dtype=np.int64)  # parents come first (parents[j] < j)
+            self._arrays = (joints, nj, par, off, ne, np.array([leg.hip for leg in self.legs], dtype=np.int64),
+                            np.array([leg.ankle for leg in self.legs], dtype=np.int64),
+                            np.array(self.reach, dtype=np.float64), chain,
+                            np.ascontiguousarray(sk.offsets, dtype=np.float64),
+                            np.ascontiguousarray(sk.parents, dtype=np.int64))
+        return self._arrays
+
+    def idle(self, planted) -> bool:
+        """Nothing planted now nor before, and no correction left to fade: the pose needs no change."""
+        return (not np.any(planted) and not np.any(self.planted) and not np.any(self.release)
+                and not np.any(self.drop) and not np.any(self.release_z))
+
+    def constrain(self, root, q, w, wn, phase, left, rest, dt: float, heading):
+        """Enforce the support on blended poses; returns new ``root (N, 3)`` and ``q (N, J, 4)``.
+
+        Args:
+            root, q: ``(N, 3)``, ``(N, J, 4)`` the blended poses (world root, local rotations).
+            w, wn: ``(N, S)`` action weights and ``(N,)`` the neutral pose's.
+            phase: ``(N, S)`` each action's support phase now.
+            left: ``(N,)`` the share of the weight on the left foot; ``rest`` ``(N,)`` planted-foot height.
+            dt: seconds since the previous frame; ``heading`` ``(N,)`` the characters' headings.
+
+        Compiled: one pass per character for the support, forward kinematics of the legs and the holds
+        (:func:`_hold_kernel`), then the leg IK (:func:`pin_feet_fast`).
+        """
+        N = len(root)
+        planted = np.empty((N, 2), dtype=np.bool_)
+        vote = np.empty((N, 2))
+        support = np.ascontiguousarray(self.support, dtype=np.int64)
+        left = np.ascontiguousarray(left, dtype=np.float64)
+        _support_kernel(np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(wn, dtype=np.float64),
+                        np.ascontiguousarray(phase, dtype=np.int8), left, support, planted, vote)
+        self.support = support
+        if self.idle(planted):
+            return root, q
+        root = np.array(root, dtype=np.float64)
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        gr, gp, target, xy, lift, need = self._hold(root, q, planted, vote, left, rest, dt)
+        self.planted = planted
+        for s, leg in enumerate(self.legs):
+            r = np.nonzero(need[:, s])[0]
+            if len(r):
+                q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=lift[r, s])
+        return root, q
+
+    def _hold(self, root, q, planted, vote, left, rest, dt: float):
+        """Run :func:`_hold_kernel`; returns the legs' world rotations and positions ``gr``, ``gp`` and the
+        kernel's ``target``, ``xy``, ``lift``, ``need``."""
+        cfg = self.config
+        hl = cfg.root_halflife
+        alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
+        decay = 0.5 ** (dt / cfg.release_halflife) if cfg.release_halflife > 0 else 0.0
+        N, J = q.shape[:2]
+        gr = np.zeros((N, J, 4))  # only the legs' chains are computed
+        gp = np.zeros((N, J, 3))
+        target = np.empty((N, 2, 2))
+        xy = np.empty((N, 2, 2))
+        need = np.empty((N, 2), dtype=np.bool_)
+        lift = np.empty((N, 2))
+        joints, nj, par, off, ne, hips, ankles, reach, chain, offsets, parents = self.leg_arrays()
+        _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left,
+                     np.ascontiguousarray(rest, dtype=np.float64), self.planted, self.foot_pt, self.foot_xy,
+                     self.release, self.release_z, self.drop, joints, nj, par, off, ne, hips, ankles, reach, alpha,
+                     decay, float(cfg.max_foot_offset), float(cfg.max_pelvis_drop),
+                     float(cfg.max_pelvis_drop) * dt / DROP_TIME, target, xy, lift, need)
+        return gr, gp, target, xy, lift, need

@@ -11,8 +11,8 @@ weighted sum of the cycles' displacements over the same phase. The blended motio
 built together, so the sequence is adapted exactly as the motion is.
 
 The result is an ordinary cyclic clip (``Motion`` plus ``PhaseSequence``) that the mixer plays, time
-scales and synchronizes like any other; :meth:`kinodyn.blend.mixer.ClipLibrary.add_blend` adds one to a
-library, and a blend script's ``clips`` section accepts ``{mix: {walk: 0.5, slow_walk: 0.5}}``.
+scales and synchronizes like any other; :func:`kinodyn.blend.library.add_blend` adds one to a
+clip store, and a blend script's ``clips`` section accepts ``{mix: {walk: 0.5, slow_walk: 0.5}}``.
 
 Shapes: ``C`` cycles, ``K`` elements, ``F`` frames, ``J`` joints. Units: seconds, metres.
 """
@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from kinodyn.blend.phases import PhaseSequence
+from kinodyn.blend.pose import blend_rotations
+from kinodyn.clips import ClipStore
 from kinodyn.errors import MotionError, ParameterError
 from kinodyn.math import quat, xform
 from kinodyn.motion import Motion
@@ -75,7 +77,6 @@ def blend_cycles(motions, weights, sequences=None, fps: float | None = None, con
         ParameterError: bad weights or fps; MotionError: cycles of different support patterns.
     """
     from kinodyn.blend import phases as _phases
-    from kinodyn.blend.mixer import ClipLibrary, blend_rotations
 
     motions = list(motions)
     if not motions or not all(isinstance(m, Motion) for m in motions):
@@ -111,9 +112,9 @@ def blend_cycles(motions, weights, sequences=None, fps: float | None = None, con
     u = np.clip((t - bounds[k]) / target[k], 0.0, 1.0)
     tau = starts[:, k] + u * dur[:, k]                       # (C, F): each cycle's clip time
     skeleton = motions[0].skeleton
-    lib = ClipLibrary(skeleton)
-    for i, (m, s) in enumerate(zip(motions, sequences)):
-        lib.add(str(i), m, cyclic=True, sequence=s)
+    lib = ClipStore.empty(skeleton)
+    for i, m in enumerate(motions):
+        lib = lib.add(str(i), m, cyclic=True)
     clip = np.broadcast_to(np.arange(len(motions))[:, None], tau.shape)
     rot, z, delta = lib.sample(clip[:, 1:], tau[:, 1:], tau[:, :-1])   # (C, F-1, ...)
     rot0, z0 = lib.sample(clip[:, :1], tau[:, :1])

@@ -54,7 +54,7 @@ def action_phase_track(result, key, threshold: float = 1e-3):
     frames where it plays with weight above ``threshold`` ``(F,)``."""
     rec = result.recording.arrays()
     h, w = rec[key]
-    act = result.mixer.chars[0].history[key]
+    act = result.actions[key]
     on = (w > threshold) & np.isfinite(h)
     codes = np.zeros(len(h), dtype=np.int8)
     codes[on] = act.seq.phase_at(h[on])
@@ -80,7 +80,7 @@ def plot_phases(result, path, title: str | None = None, compare=None) -> Path:
     keys = [k for k in rec if k not in ("t", "neutral")]
     rows = [(k, *action_phase_track(result, k)) for k in keys]
     res = result.frame_phases()
-    rows.append(("result (synchronized)" if result.mixer.config.synchronize else "result", res,
+    rows.append(("result (synchronized)" if result.synchronized else "result", res,
                  np.ones(len(res), bool)))
     if compare is not None:
         rows.append(("without synchronization", compare.frame_phases(), np.ones(len(t), bool)))
@@ -113,10 +113,9 @@ def plot_timewarp(result, path, keys=None, title: str | None = None) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    planner = result.mixer.chars[0].planner
-    if planner is None:
+    timing = result.timing
+    if timing is None:
         raise ValueError("the result was not synchronized: there is no time warp to plot")
-    timing = planner.timing_history
     keys = [k for k in (keys or list(timing)) if k in timing and timing[k].segments]
     fig, axes = plt.subplots(2, 1, figsize=(12, 7), sharex=True)
     for i, k in enumerate(keys):

@@ -260,12 +260,13 @@ def load_script(path) -> Script:
 
 
 def build_library(script: Script, extra: dict | None = None):
-    """The :class:`~kinodyn.blend.mixer.ClipLibrary` holding the clips the script uses.
+    """The :class:`~kinodyn.clips.ClipStore` (with support) holding the clips the script uses.
 
     Built-in clips are loaded by name from :mod:`kinodyn.data.library`; ``clips`` entries from files;
     ``extra`` maps names to ``(Motion, cyclic)`` pairs given in code (they win over both).
     """
-    from kinodyn.blend.mixer import ClipLibrary
+    from kinodyn.blend.library import add_blend, add_clip
+    from kinodyn.clips import ClipStore
 
     extra = dict(extra or {})
     files = {c.name: c for c in script.clips}
@@ -310,38 +311,46 @@ def build_library(script: Script, extra: dict | None = None):
             known = sorted(set(builtin_names) | set(files) | set(extra) | set(mixes))
             raise ScriptError(f"{where}: unknown clip {n!r}; known clips: {', '.join(known)}")
     first = next(iter(motions.values()))[0]
-    lib = ClipLibrary(first.skeleton)
+    lib = ClipStore.empty(first.skeleton)
     for n, (m, cyc) in motions.items():
-        lib.add(n, m, cyc)
+        lib = add_clip(lib, n, m, cyc)
     for n in order:
         if n in mixes:
             try:
-                lib.add_blend(n, dict(mixes[n].weights))
+                lib = add_blend(lib, n, dict(mixes[n].weights))
             except KinodynError as e:
                 raise ScriptError(f"{where}: clips.{n}: {e}") from None
     if script.neutral is None and "idle" not in lib.names and "idle" in builtin_names:
         idle = data_lib.load("idle")
         if idle.skeleton.same_topology(lib.skeleton):  # the built-in standing pose as the neutral pose
-            lib.add("idle", idle, True)
+            lib = add_clip(lib, "idle", idle, True)
     return lib
 
 
 @dataclass
 class BlendResult:
-    """A script played through the mixer.
+    """A script played through the mixer: plain arrays and records, no live mixer.
 
     Attributes:
         motion: the blended clip.
-        recording: per-frame action times and weights (:class:`~kinodyn.blend.mixer.Recording`).
-        mixer: the mixer after the last frame (its synchronizer and warp history for plots).
-        library: the clips used.
+        recording: per-frame action times and weights (:class:`~kinodyn.blend.actions.Recording`).
+        actions: ``{key: ActionRecord}`` every action started, in start order
+            (:class:`~kinodyn.blend.actions.ActionRecord`: its adapted sequence, start and stop times).
+        synchronized: whether the mixer synchronized the support phases.
+        timing: ``{key: timing}`` each action's time-warp segments (the warp planner's history), or
+            ``None`` without synchronization.
+        sync_events: the synchronizer's events (:class:`~kinodyn.blend.sync.SyncEvent`), empty without.
+        library: the clips used (:class:`~kinodyn.clips.ClipStore`).
         script: the script.
         starts: ``{key: (requested, actual)}`` start times (actual differs when synchronization delayed it).
     """
 
     motion: Motion
     recording: object
-    mixer: object
+    actions: dict
+    synchronized: bool
+    timing: dict | None
+    sync_events: tuple
     library: object
     script: Script
     starts: dict = field(default_factory=dict)
@@ -359,7 +368,7 @@ class BlendResult:
 
         rec = self.recording.arrays()
         out = np.zeros(self.motion.num_frames, dtype=np.int8)
-        for k, act in self.mixer.chars[0].history.items():
+        for k, act in self.actions.items():
             if k not in rec:
                 continue
             h, w = rec[k]
@@ -384,7 +393,7 @@ def intended_contacts(result, threshold: float = 0.5) -> dict:
     n = result.motion.num_frames
     left = np.array(rec["neutral"][:n], dtype=np.float64)
     right = left.copy()
-    for k, act in result.mixer.chars[0].history.items():
+    for k, act in result.actions.items():
         if k not in rec:
             continue
         h, w = rec[k]
@@ -430,7 +439,7 @@ def run_script(script: Script, synchronize: bool | None = None, library=None, ex
     Args:
         script: a :class:`Script` (:func:`load_script`).
         synchronize: override the script's ``synchronize``.
-        library: a ready :class:`~kinodyn.blend.mixer.ClipLibrary` (default: :func:`build_library`).
+        library: a ready :class:`~kinodyn.clips.ClipStore` with support (default: :func:`build_library`).
         extra: clips given in code for :func:`build_library`.
         config: a :class:`~kinodyn.blend.mixer.BlendConfig` overriding the script's settings.
     """
@@ -471,8 +480,8 @@ def run_script(script: Script, synchronize: bool | None = None, library=None, ex
                 if kind == "start":
                     mixer.start(a.clip, priority=a.priority, ramp_in=a.ramp_in, ramp_out=a.ramp_out, speed=a.speed,
                                 key=key, auto_stop=a.auto_stop, at=cmds[ci - 1][0])
-                    history[key] = mixer.chars[0].actions[key]
-                elif key in mixer.chars[0].actions:
+                    history[key] = mixer.actions(0)[key]
+                elif key in mixer.actions(0):
                     mixer.stop(key, at=cmds[ci - 1][0])
             except KinodynError as e:
                 raise KinodynError(f"at {t:.3f} s, {kind} {key!r}: {e}") from None
@@ -483,4 +492,8 @@ def run_script(script: Script, synchronize: bool | None = None, library=None, ex
         starts[key] = (a.requested, a.t_on)
     name = script.name or (script.path.stem if script.path else "blend")
     motion = Motion(lib.skeleton, root, rot, fps, name=name)
-    return BlendResult(motion, mixer.recordings[0], mixer, lib, script, starts)
+    ch = mixer.chars[0]
+    timing = None if ch.planner is None else dict(ch.planner.timing_history)
+    events = () if ch.sync is None else tuple(ch.sync.events)
+    return BlendResult(motion, mixer.recordings[0], {k: a.record() for k, a in ch.history.items()},
+                       cfg.synchronize, timing, events, lib, script, starts)

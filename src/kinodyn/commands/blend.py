@@ -56,9 +56,8 @@ def run(args) -> int:
     m = result.motion
     print(f"wrote {out}: {m.num_frames} frames at {m.fps:g} fps = {m.duration:.2f} s, "
           f"{len(result.starts)} actions, {'synchronized' if sync else 'not synchronized'}")
-    sync_state = result.mixer.chars[0].sync
     waits = {}
-    for e in (sync_state.events if sync_state is not None else []):
+    for e in result.sync_events:
         if e.kind == "wait":
             waits[e.key] = waits.get(e.key, 0) + 1
     for key, (asked, started) in result.starts.items():

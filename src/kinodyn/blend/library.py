@@ -1,0 +1,101 @@
+"""Clips for blending: the packed :class:`~kinodyn.clips.ClipStore` with each clip's support.
+
+Ménardais, Multon, Kulpa, Arnaldi, support-phase synchronization, section 4.2: every clip the mixer
+plays carries its support-phase sequence, detected from foot contacts unless given. One contact
+detection per clip gives both the sequence and the height of its planted feet
+(:func:`kinodyn.clips.rest_height`), which the support constraints keep. Every function returns a new
+store (stores are frozen).
+
+Uses: :mod:`kinodyn.clips` (the store), :mod:`kinodyn.contacts`, :mod:`kinodyn.blend.phases`,
+:mod:`kinodyn.blend.parametric` (blended cycles).
+"""
+
+from __future__ import annotations
+
+from kinodyn import contacts
+from kinodyn.blend import phases as _phases
+from kinodyn.blend.parametric import blend_cycles
+from kinodyn.blend.phases import PhaseConfig, PhaseSequence
+from kinodyn.clips import ClipStore, ClipSupport, rest_height
+from kinodyn.errors import MotionError, ParameterError, UnknownNameError
+from kinodyn.motion import Motion
+
+__all__ = ["add_blend", "add_clip", "builtin", "sequence", "sequences"]
+
+
+def add_clip(store: ClipStore, name: str, motion: Motion, cyclic: bool = False,
+             sequence: PhaseSequence | None = None, feet=None, contact_config=None,
+             phase_config: PhaseConfig = PhaseConfig()) -> ClipStore:
+    """``store`` with one more clip and its support.
+
+    Args:
+        store: the :class:`~kinodyn.clips.ClipStore` to add to.
+        name: unique name.
+        motion: the clip (see :meth:`kinodyn.clips.ClipStore.add`).
+        cyclic: the clip loops (closed by :func:`kinodyn.clips.close_loop`).
+        sequence: its support-phase sequence; detected from foot contacts when ``None``.
+        feet: foot joints for contact detection (see :func:`kinodyn.contacts.find_feet`).
+        contact_config: :class:`kinodyn.contacts.ContactConfig` used to build sequences.
+        phase_config: :class:`~kinodyn.blend.phases.PhaseConfig`.
+    """
+    if not isinstance(store, ClipStore):
+        raise ParameterError(f"store must be a ClipStore, got {type(store).__name__}")
+    motion = store.prepare(name, motion)
+    if sequence is not None and sequence.cyclic != bool(cyclic):
+        raise ParameterError(f"clip {name!r}: sequence.cyclic={sequence.cyclic} but cyclic={cyclic}")
+    try:
+        found = contacts.detect(motion, contact_config or contacts.ContactConfig(), feet)
+    except UnknownNameError:
+        if sequence is None:
+            raise
+        found = None
+    if sequence is None:
+        sequence = _phases.from_labels(found.labels["left"], found.labels["right"], motion.fps, cyclic, phase_config)
+    t = motion.times()
+    support = ClipSupport(sequence.phases, sequence.durations, float(sequence.start),
+                          sequence.phase_at(t).astype("int8"), sequence.left_share(t), rest_height(found))
+    return store.add(name, motion, cyclic, support)
+
+
+def sequence(store: ClipStore, name) -> PhaseSequence:
+    """The support-phase sequence of a clip of ``store``."""
+    k = store.index(name)
+    phases, durations, start = store.support(k)
+    if not len(phases):
+        raise MotionError(f"clip {store.names[k]!r} has no support-phase sequence in this store")
+    return PhaseSequence(phases, durations, bool(store.is_cyclic[k]), start)
+
+
+def sequences(store: ClipStore) -> list[PhaseSequence]:
+    """Every clip's sequence, in store order."""
+    return [sequence(store, k) for k in range(len(store))]
+
+
+def add_blend(store: ClipStore, name: str, weights: dict) -> ClipStore:
+    """``store`` with the cycle between its clips at ``weights`` (``{clip: weight}``) added, a parametric
+    model (:func:`kinodyn.blend.parametric.blend_cycles`).
+
+    The clips must be cyclic and share a support pattern; the new clip's sequence is built with it.
+    """
+    if not isinstance(weights, dict) or not weights:
+        raise ParameterError(f"weights must map clip names to weights, got {weights!r}")
+    idx = [store.index(k) for k in weights]
+    for i in idx:
+        if not store.is_cyclic[i]:
+            raise MotionError(f"clip {store.names[i]!r} is not cyclic; only cycles blend into a new cycle")
+    motions = [store.motion(i) for i in idx]
+    motion, seq = blend_cycles(motions, list(weights.values()), [sequence(store, i) for i in idx],
+                               fps=motions[0].fps)
+    return add_clip(store, name, motion.replace(name=name), cyclic=True, sequence=seq)
+
+
+def builtin(names=None, contact_config=None, phase_config: PhaseConfig = PhaseConfig()) -> ClipStore:
+    """The built-in clips of :mod:`kinodyn.data.library` (all of them, or ``names``) with their support."""
+    from kinodyn.data import library as data_lib
+    from kinodyn.data.skeleton import humanoid
+
+    store = ClipStore.empty(humanoid())
+    for n in (data_lib.names() if names is None else names):
+        store = add_clip(store, n, data_lib.load(n), data_lib.info(n).cyclic, contact_config=contact_config,
+                         phase_config=phase_config)
+    return store
