@@ -36,7 +36,7 @@ from kinodyn.math import quat, xform
 from kinodyn.motion import Motion
 from kinodyn.skeleton import Skeleton
 
-__all__ = ["FORMAT", "ClipStore", "ClipSupport", "close_loop", "facing_frames", "load", "rest_height",
+__all__ = ["FORMAT", "NO_PHASE", "ClipStore", "ClipSupport", "close_loop", "facing_frames", "load", "rest_height",
            "unroll_loops"]
 
 #: The ``format`` of a saved store's metadata.

@@ -25,7 +25,7 @@ __all__ = ["add_blend", "add_clip", "builtin", "sequence", "sequences"]
 
 def add_clip(store: ClipStore, name: str, motion: Motion, cyclic: bool = False,
              sequence: PhaseSequence | None = None, feet=None, contact_config=None,
-             phase_config: PhaseConfig = PhaseConfig()) -> ClipStore:
+             phase_config: PhaseConfig | None = None) -> ClipStore:
     """``store`` with one more clip and its support.
 
     Args:
@@ -36,7 +36,7 @@ def add_clip(store: ClipStore, name: str, motion: Motion, cyclic: bool = False,
         sequence: its support-phase sequence; detected from foot contacts when ``None``.
         feet: foot joints for contact detection (see :func:`kinodyn.contacts.find_feet`).
         contact_config: :class:`kinodyn.contacts.ContactConfig` used to build sequences.
-        phase_config: :class:`~kinodyn.blend.phases.PhaseConfig`.
+        phase_config: :class:`~kinodyn.blend.phases.PhaseConfig` (default: its defaults).
     """
     if not isinstance(store, ClipStore):
         raise ParameterError(f"store must be a ClipStore, got {type(store).__name__}")
@@ -50,7 +50,8 @@ def add_clip(store: ClipStore, name: str, motion: Motion, cyclic: bool = False,
             raise
         found = None
     if sequence is None:
-        sequence = _phases.from_labels(found.labels["left"], found.labels["right"], motion.fps, cyclic, phase_config)
+        sequence = _phases.from_labels(found.labels["left"], found.labels["right"], motion.fps, cyclic,
+                                       phase_config or PhaseConfig())
     t = motion.times()
     support = ClipSupport(sequence.phases, sequence.durations, float(sequence.start),
                           sequence.phase_at(t).astype("int8"), sequence.left_share(t), rest_height(found))
@@ -89,7 +90,7 @@ def add_blend(store: ClipStore, name: str, weights: dict) -> ClipStore:
     return add_clip(store, name, motion.replace(name=name), cyclic=True, sequence=seq)
 
 
-def builtin(names=None, contact_config=None, phase_config: PhaseConfig = PhaseConfig()) -> ClipStore:
+def builtin(names=None, contact_config=None, phase_config: PhaseConfig | None = None) -> ClipStore:
     """The built-in clips of :mod:`kinodyn.data.library` (all of them, or ``names``) with their support."""
     from kinodyn.data import library as data_lib
     from kinodyn.data.skeleton import humanoid

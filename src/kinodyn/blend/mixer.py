@@ -129,12 +129,12 @@ class BlendConfig:
             raise ParameterError(f"average must be one of {', '.join(_AVERAGES)}, got {self.average!r}")
 
 
-
 class Mixer:
     """Mixes actions for ``N`` characters, one frame at a time (mutable real-time state).
 
     Args:
-        library: the :class:`~kinodyn.clips.ClipStore` (with support, :mod:`kinodyn.blend.library`) the actions play from.
+        library: the :class:`~kinodyn.clips.ClipStore` the actions play from, with each clip's support
+            (built by :mod:`kinodyn.blend.library`).
         n_characters: number of characters mixed together.
         config: :class:`BlendConfig`.
         neutral: the neutral double-support pose: a clip name (its first frame), a
@@ -142,14 +142,21 @@ class Mixer:
             library has one, else the first double-support frame of the first clip.
         record: keep a per-frame :class:`Recording` of every character (for plots and checks).
 
+    Attributes:
+        slots: the :class:`~kinodyn.blend.character.Slots` arrays every frame is evaluated from.
+        chars: one :class:`~kinodyn.blend.character.Character` per character (its actions and history).
+        footlock: the :class:`~kinodyn.blend.footlock.FootLock` (support constraints and their state).
+        ground: ``(N, 3)`` each character's ground transform ``(x, y, heading)``.
+        compiled: False runs the numpy reference of the weights (for tests).
+
     Example::
 
+        library = kinodyn.blend.library.builtin(["idle", "walk", "run"])
         mixer = Mixer(library)
         mixer.start("walk", priority=1)
         for _ in range(120):
             pose = mixer.step(1 / 60)
     """
-
 
     def __init__(self, library: ClipStore, n_characters: int = 1, config: BlendConfig = BlendConfig(),
                  neutral=None, record: bool = False, keep_log: bool | None = None):
@@ -165,7 +172,7 @@ class Mixer:
         self.slots = Slots(self.n, config.max_actions)
         self.ground = np.zeros((self.n, 3))
         self.footlock = FootLock(library.skeleton, self.n, config)
-        self.compiled = True  # False: the numpy reference of the weights (tests)
+        self.compiled = True
         self.sequences = _library.sequences(library)
         self.neutral = self._neutral_pose(neutral)
         self.neutral_rest = self.footlock.rest_of_pose(*self.neutral)
