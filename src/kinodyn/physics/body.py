@@ -332,7 +332,7 @@ _MODELS: weakref.WeakKeyDictionary[CharacterBody, mujoco.MjModel] = weakref.Weak
 
 
 def _side(skeleton: Skeleton, j: int, pos: np.ndarray) -> str:
-    from kinodyn.contacts import _side as name_side
+    from kinodyn.contacts import name_side
 
     s = name_side(skeleton.names[j])
     if s:
@@ -563,7 +563,7 @@ def build_body(skeleton: Skeleton, config: BodyConfig | None = None, pd=None) ->
             act.set_to_position(kp=float(kp[k]), kv=float(kv[k]))
             act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         if pd.max_torque is not None:
-            tmax = float(pd.max_torque * kp[k] / max(tracking._multipliers(bmap, pd)[k], 1e-12)) if w2 else 0.0
+            tmax = float(pd.max_torque * kp[k] / max(tracking.gain_multipliers(bmap, pd)[k], 1e-12)) if w2 else 0.0
             act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
             act.forcerange = [0.0, tmax] if s.kind == "ball" else [-tmax, tmax]
     tracking.set_joint_passives(spec, model, bmap, pd, cfg.armature)

@@ -158,8 +158,8 @@ def clip_controls(world, nstep: int, start_step: int | None = None) -> np.ndarra
     steps = np.arange(start, start + nstep)
     for c in world.characters:
         sl = slice(c.cadr, c.cadr + c.map.nu)
-        if c._target is not None:
-            out[:, sl] = c._target
+        if c.ctrl_target is not None:
+            out[:, sl] = c.ctrl_target
         elif c.clip is not None:
             rows = c.clip.indices(steps[:, None] + c.lead_steps[None, :])
             out[:, sl] = c.clip.ctrl[rows, c.ctrl_cols[None, :]]
@@ -203,7 +203,7 @@ def impact_batch(world, char, throws, duration: float = 0.5, lead: float = 0.05,
         start_step = hit_step - lead_steps
         if start_step < world.step_count:
             raise ParameterError(f"throw arriving at t={t_hit:.3f} s starts before the world's time {world.time:.3f} s")
-        target = world._landmark_point(char, char.map.body(th.get("landmark", "chest")), t_hit)
+        target = world.landmark_point(char, char.map.body(th.get("landmark", "chest")), t_hit)
         start, vel, flight = _impacts.launch(target, th["speed"], th["direction"], th["height"],
                                              th.get("distance", 2.0), g)
         tau = flight - lead_steps * world.dt  # time already flown at the rollout's start
@@ -216,12 +216,12 @@ def impact_batch(world, char, throws, duration: float = 0.5, lead: float = 0.05,
         q, v = char.clip.state(start_step)
         s[1 + char.qadr:1 + char.qadr + char.map.nq] = q
         s[1 + m.nq + char.vadr:1 + m.nq + char.vadr + char.map.nv] = v
-        s[1 + ball._qadr:1 + ball._qadr + 7] = np.concatenate([p0, [1.0, 0.0, 0.0, 0.0]])
-        s[1 + m.nq + ball._vadr:1 + m.nq + ball._vadr + 6] = np.concatenate([v0, np.zeros(3)])
+        s[1 + ball.qadr:1 + ball.qadr + 7] = np.concatenate([p0, [1.0, 0.0, 0.0, 0.0]])
+        s[1 + m.nq + ball.vadr:1 + m.nq + ball.vadr + 6] = np.concatenate([v0, np.zeros(3)])
         states.append(s)
         controls.append(clip_controls(world, nsteps, start_step))
-        info.append({"start_step": start_step, "launch": (start, vel, flight), "ball_qadr": ball._qadr,
-                     "ball_vadr": ball._vadr, "throw": dict(th)})
+        info.append({"start_step": start_step, "launch": (start, vel, flight), "ball_qadr": ball.qadr,
+                     "ball_vadr": ball.vadr, "throw": dict(th)})
     res = rollout(world, np.array(states), np.array(controls), nsteps, nthread)
     return res, info
 

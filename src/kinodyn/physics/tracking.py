@@ -42,6 +42,7 @@ __all__ = [
     "apply_gains",
     "default_gains",
     "feedforward_targets",
+    "gain_multipliers",
     "natural_frequency",
     "set_joint_passives",
     "subtree_inertia",
@@ -170,7 +171,9 @@ def _is_under(parent, k, b):
     return False
 
 
-def _multipliers(bmap, cfg: PDConfig) -> np.ndarray:
+def gain_multipliers(bmap, cfg: PDConfig) -> np.ndarray:
+    """``(A,)`` stiffness multiplier ``s_j`` of each actuated segment: its joint's override, else its
+    class row of the gains table."""
     out = np.zeros(len(bmap.actuated))
     for k, b in enumerate(bmap.actuated):
         s = bmap.segments[b]
@@ -188,7 +191,7 @@ def default_gains(model: mujoco.MjModel, bmap, cfg: PDConfig, body_offset: int =
         inertia = subtree_inertia(model, bmap, body_offset)[bmap.actuated]
     else:
         inertia = np.full(len(bmap.actuated), cfg.reference_inertia)
-    s = _multipliers(bmap, cfg)
+    s = gain_multipliers(bmap, cfg)
     kp = s * inertia * w * w
     kv = 2.0 * cfg.damping_ratio * np.sqrt(s) * inertia * w
     return kp, kv

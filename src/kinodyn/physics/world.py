@@ -225,21 +225,22 @@ class Projectile:
         self.mass = mass
         self.radius = radius
         self.active = False
-        self._qadr = self._vadr = self._body = self._geom = -1
+        #: addresses of the ball in the world model (set when the model is compiled)
+        self.qadr = self.vadr = self.body_id = self.geom_id = -1
 
     def _bind(self, model: mujoco.MjModel) -> None:
-        self._body = model.body(self.name).id
-        jid = model.body_jntadr[self._body]
-        self._qadr = int(model.jnt_qposadr[jid])
-        self._vadr = int(model.jnt_dofadr[jid])
-        self._geom = int(model.body_geomadr[self._body])
+        self.body_id = model.body(self.name).id
+        jid = model.body_jntadr[self.body_id]
+        self.qadr = int(model.jnt_qposadr[jid])
+        self.vadr = int(model.jnt_dofadr[jid])
+        self.geom_id = int(model.body_geomadr[self.body_id])
         self._apply_active(model)
 
     def _apply_active(self, model: mujoco.MjModel) -> None:
         """A parked ball floats (gravity compensated) and collides with nothing."""
-        model.geom_contype[self._geom] = 1 if self.active else 0
-        model.geom_conaffinity[self._geom] = 1 if self.active else 0
-        model.body_gravcomp[self._body] = 0.0 if self.active else 1.0
+        model.geom_contype[self.geom_id] = 1 if self.active else 0
+        model.geom_conaffinity[self.geom_id] = 1 if self.active else 0
+        model.body_gravcomp[self.body_id] = 0.0 if self.active else 1.0
 
     def activate(self) -> None:
         self.active = True
@@ -247,11 +248,11 @@ class Projectile:
 
     @property
     def position(self) -> np.ndarray:
-        return self.world.data.qpos[self._qadr:self._qadr + 3].copy()
+        return self.world.data.qpos[self.qadr:self.qadr + 3].copy()
 
     @property
     def velocity(self) -> np.ndarray:
-        return self.world.data.qvel[self._vadr:self._vadr + 3].copy()
+        return self.world.data.qvel[self.vadr:self.vadr + 3].copy()
 
     @property
     def momentum(self) -> np.ndarray:
@@ -261,10 +262,10 @@ class Projectile:
         """Put the ball at ``pos`` with velocity ``vel`` (and make it collide and fall)."""
         self.activate()
         d = self.world.data
-        d.qpos[self._qadr:self._qadr + 3] = pos
-        d.qpos[self._qadr + 3:self._qadr + 7] = (1.0, 0.0, 0.0, 0.0)
-        d.qvel[self._vadr:self._vadr + 3] = vel
-        d.qvel[self._vadr + 3:self._vadr + 6] = 0.0
+        d.qpos[self.qadr:self.qadr + 3] = pos
+        d.qpos[self.qadr + 3:self.qadr + 7] = (1.0, 0.0, 0.0, 0.0)
+        d.qvel[self.vadr:self.vadr + 3] = vel
+        d.qvel[self.vadr + 3:self.vadr + 6] = 0.0
 
     def __repr__(self) -> str:
         return f"Projectile({self.name!r}, {self.mass:g} kg, r={self.radius:g} m)"
@@ -288,7 +289,8 @@ class Character:
         self.mode = "dynamic"
         self.on_impact = "switch"
         self.clip: _Clip | None = None
-        self._target: np.ndarray | None = None  # fixed ctrl target when not following a clip
+        #: fixed servo targets ``(nu,)`` when not following a clip (set by :meth:`track`), else None
+        self.ctrl_target: np.ndarray | None = None
         self._stiffness = np.ones(len(body.map.actuated))
         self._damping = np.ones(len(body.map.actuated))
         self.switch_time: float | None = None
@@ -572,7 +574,7 @@ class World:
             tracking.apply_gains(m, acts, c.body.kp, c.body.kv, c._stiffness, c._damping)
         for p in self.projectiles:
             p._bind(m)
-            owner[m.body_geomadr[p._body]] = -2 - p.index
+            owner[m.body_geomadr[p.body_id]] = -2 - p.index
         self._owner = owner
         # reach of each character: farthest geometry from its root in the rest pose
         self._reach = np.array([_reach(c.body) for c in self.characters])
@@ -663,7 +665,7 @@ class World:
         # the clip is sampled whole; it started `start` seconds ago
         char.clip = self._sample_clip(char, motion, self._step - round(start / self.dt), loop, align_floor)
         char.mode = "kinematic"
-        char._target = None
+        char.ctrl_target = None
         self._set_kinematic(char)
         self._set_ctrl(char)
 
@@ -694,14 +696,14 @@ class World:
         pose as skeleton local rotations ``(J, 4)``, or ``None`` to follow the current clip again."""
         self._ensure()
         if target is None:
-            char._target = None
+            char.ctrl_target = None
         elif isinstance(target, Motion):
             clip = self._sample_clip(char, target, self._step, False, False)
             if char.mode == "kinematic":
                 raise SimulationError(f"character {char.name!r} is kinematic; switch it to dynamic before "
                                       "giving it a separate tracking target")
             char.clip = clip
-            char._target = None
+            char.ctrl_target = None
         else:
             rot = np.asarray(target, dtype=np.float64)
             if rot.shape != (char.skeleton.num_joints, 4):
@@ -710,7 +712,7 @@ class World:
                                   f"got {rot.shape}")
             if not np.all(np.isfinite(rot)):
                 raise MotionError("target pose has non-finite values")
-            char._target = pose_to_ctrl(char.map, quat.normalize(rot))
+            char.ctrl_target = pose_to_ctrl(char.map, quat.normalize(rot))
         self._set_ctrl(char)
 
     def set_gains(self, char: Character, stiffness=1.0, damping=None, joints=None) -> None:
@@ -760,8 +762,8 @@ class World:
         d.qpos[c.qadr:c.qadr + c.map.nq], d.qvel[c.vadr:c.vadr + c.map.nv] = c.clip.state(self._step)
 
     def _set_ctrl(self, c: Character) -> None:
-        if c._target is not None:
-            self.data.ctrl[c.cadr:c.cadr + c.map.nu] = c._target
+        if c.ctrl_target is not None:
+            self.data.ctrl[c.cadr:c.cadr + c.map.nu] = c.ctrl_target
         elif c.clip is not None:
             rows = c.clip.indices(self._step + c.lead_steps)
             self.data.ctrl[c.cadr:c.cadr + c.map.nu] = c.clip.ctrl[rows, c.ctrl_cols]
@@ -797,7 +799,7 @@ class World:
         t_now = self.time
         t_hit = t_now if at is None else float(at)
         for _ in range(3):
-            target = self._landmark_point(char, b, t_hit)
+            target = self.landmark_point(char, b, t_hit)
             start, vel, flight = _impacts.launch(target, speed, direction, height, distance,
                                                  np.array([0.0, 0.0, -self.config.gravity]))
             if at is None:
@@ -823,7 +825,7 @@ class World:
                 keep.append((s, p, pos, vel))
         self._pending_throws = keep
 
-    def _landmark_point(self, char: Character, b: int, t: float) -> np.ndarray:
+    def landmark_point(self, char: Character, b: int, t: float) -> np.ndarray:
         """World position of the centre of segment ``b``'s geometry at time ``t`` (clip-predicted for
         kinematic characters, current otherwise)."""
         m = self.model
@@ -943,7 +945,7 @@ class World:
     def _frame_controls(self, nsub: int, ctrl_prev=None, offset: int = 0):
         """``(offset + nsub, nu)`` servo targets of the next ``nsub`` steps (rows from ``offset`` on are
         filled) for dynamic characters following a clip; ``None`` when nobody does."""
-        follow = [c for c in self.characters if c.mode == "dynamic" and c._target is None and c.clip is not None]
+        follow = [c for c in self.characters if c.mode == "dynamic" and c.ctrl_target is None and c.clip is not None]
         if not follow:
             return ctrl_prev
         d = self.data
