@@ -31,6 +31,7 @@ __all__ = [
     "default_threads",
     "impact_batch",
     "rollout",
+    "step_parallel",
     "threaded_rollout",
 ]
 
@@ -152,20 +153,10 @@ def rollout(world, initial_state=None, control=None, nstep: int | None = None, n
 def clip_controls(world, nstep: int, start_step: int | None = None) -> np.ndarray:
     """``(nstep, nu)`` servo targets that :meth:`World.step` would apply over the next ``nstep`` steps
     (clip targets with their lookahead, fixed targets, or the rest pose)."""
+    from kinodyn.physics import playback
+
     start = world.step_count if start_step is None else int(start_step)
-    out = np.empty((nstep, world.model.nu))
-    out[:] = world.data.ctrl
-    steps = np.arange(start, start + nstep)
-    for c in world.characters:
-        sl = slice(c.cadr, c.cadr + c.map.nu)
-        if c.ctrl_target is not None:
-            out[:, sl] = c.ctrl_target
-        elif c.clip is not None:
-            rows = c.clip.indices(steps[:, None] + c.lead_steps[None, :])
-            out[:, sl] = c.clip.ctrl[rows, c.ctrl_cols[None, :]]
-        else:
-            out[:, sl] = c.rest_ctrl
-    return out
+    return playback.clip_controls(world.characters, world.data.ctrl, nstep, start)
 
 
 def impact_batch(world, char, throws, duration: float = 0.5, lead: float = 0.05, mass: float = 3.0,
@@ -263,3 +254,23 @@ def threaded_rollout(world, initial_states, control, nthread: int | None = None)
     div, first = _divergence(out, m.nq, m.nv, world.config.max_speed, np.broadcast_to(s0[:, 0], (n,)),
                              m.opt.timestep)
     return RolloutResult(out, m.nq, m.nv, world.dt, div, first)
+
+
+def step_parallel(worlds: list, frames: int = 1, threads: int | None = None) -> None:
+    """Step several independent worlds on a pool of threads (MuJoCo releases the GIL while it steps).
+
+    Characters that never meet can live in separate worlds and use every core; characters that
+    interact must share one world.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    threads = default_threads() if threads is None else int(threads)
+    if threads <= 1 or len(worlds) <= 1:
+        for w in worlds:
+            w.step(frames)
+        return
+    for w in worlds:  # compile in this thread first
+        w.model  # noqa: B018 - compiles a world whose model changed
+    with ThreadPoolExecutor(max_workers=threads) as ex:
+        for f in [ex.submit(w.step, frames) for w in worlds]:
+            f.result()
