@@ -70,6 +70,7 @@ __all__ = [
     "body_xml",
     "build_body",
     "check_skeleton",
+    "model_from_xml",
     "motion_to_qpos",
     "pose_to_ctrl",
     "qpos_to_local_rot",
@@ -547,6 +548,11 @@ def _with_ground(spec: mujoco.MjSpec, friction: float) -> mujoco.MjSpec:
     del g
     out.worldbody.add_light(pos=[0, 0, 4], dir=[0, 0, -1])
     return out
+
+
+def model_from_xml(xml: str) -> mujoco.MjModel:
+    """Compile MJCF text (such as :func:`body_xml` writes) as MuJoCo loads it from a file."""
+    return mujoco.MjModel.from_xml_string(xml)
 
 
 def body_xml(body: CharacterBody) -> str:
