@@ -39,10 +39,13 @@ from kinodyn.physics.body import (
                                   qpos_to_local_rot,
 )
 from kinodyn.physics.impacts import Impact, launch
+from kinodyn.physics.recording import no_log_file
 from kinodyn.physics.rollout import RolloutResult, clip_controls, impact_batch
 from kinodyn.physics.state import CharacterState, character_state, states_from_qpos
 from kinodyn.physics.tracking import DEFAULT_GAINS, PDConfig
 from kinodyn.physics.world import Character, Projectile, World, WorldConfig, step_parallel
+
+no_log_file()  # diverging simulations raise SimulationDivergedError, not a MUJOCO_LOG.TXT where the user is
 
 __all__ = [
                                   "DEFAULT_GAINS",

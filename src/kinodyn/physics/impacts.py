@@ -35,6 +35,7 @@ __all__ = [
     "ImpactLog",
     "aim",
     "characters_close",
+    "check_push",
     "contact_impulses",
     "landmark_point",
     "launch",
@@ -295,6 +296,19 @@ def push_velocity(model: mujoco.MjModel, data: mujoco.MjData, bid: int, impulse:
     dv = np.zeros((1, m.nv))
     mujoco.mj_solveM(m, d, dv, (jacp.T @ impulse)[None, :])
     return dv[0], p
+
+
+def check_push(model: mujoco.MjModel, qvel: np.ndarray, max_speed: float, impulse: np.ndarray,
+               where: str) -> ParameterError | None:
+    """The error to raise when a push would leave ``qvel (nv,)`` non-finite or with a speed above
+    ``max_speed`` (m/s or rad/s), else ``None``; ``where`` names the body pushed."""
+    speed = np.abs(np.nan_to_num(qvel, nan=np.inf))
+    if not len(speed) or speed.max() <= max_speed:
+        return None
+    dof = int(np.argmax(speed))
+    return ParameterError(f"an impulse of {np.linalg.norm(impulse):.4g} N s on {where} would move "
+                          f"{model.body(model.dof_bodyid[dof]).name!r} at {speed[dof]:.4g} m/s or rad/s, above "
+                          f"max_speed ({max_speed:g}); push with a smaller impulse or on a heavier body")
 
 
 def characters_close(data: mujoco.MjData, characters, reach: np.ndarray) -> bool:

@@ -21,11 +21,22 @@ from kinodyn.math import quat
 from kinodyn.motion import Motion
 from kinodyn.physics.body import qpos_to_local_rot
 
-__all__ = ["BAD_WARNINGS", "Recording", "divergence", "trajectory", "warning_counts"]
+__all__ = ["BAD_WARNINGS", "Recording", "divergence", "no_log_file", "trajectory", "warning_counts"]
 
 #: MuJoCo warnings that mean the state went bad (MuJoCo reset it), with what went bad.
 BAD_WARNINGS = (("qacc", mujoco.mjtWarning.mjWARN_BADQACC), ("qvel", mujoco.mjtWarning.mjWARN_BADQVEL),
                 ("qpos", mujoco.mjtWarning.mjWARN_BADQPOS))
+
+
+def no_log_file() -> None:
+    """Stop MuJoCo from appending its warnings to ``MUJOCO_LOG.TXT`` in the working directory (its
+    default log file; a diverging simulation writes one there). Kinodyn turns those warnings into
+    :class:`SimulationDivergedError` instead; MuJoCo still prints them. A log file configured elsewhere
+    (``mujoco.MjLogConfig``) is kept. Process-wide, as MuJoCo's log configuration is."""
+    cfg = mujoco.MjLogConfig.get()
+    if cfg.logto_file and cfg.logfile in ("MUJOCO_LOG.TXT", ""):
+        cfg.logto_file = False
+        cfg.set()
 
 
 class Recording:

@@ -5,65 +5,156 @@ offscreen OpenGL context, :class:`OffscreenScene` holds a model compiled from MJ
 sky), adds capsules, spheres, discs, lines and arrows as decoration geoms each frame, renders them with a
 free camera, writes an overlay text and reads the pixels back.
 
-Backends (``MUJOCO_GL``): ``egl`` (GPU or Mesa's EGL, no display needed), ``osmesa`` (CPU, Debian:
-``apt-get install libosmesa6``) and ``glfw`` (needs a display). Images are ``(H, W, 3)`` uint8 RGB, top
+Backends: ``egl`` (a GPU or Mesa's EGL, no display needed), ``osmesa`` (the CPU, Debian:
+``apt-get install libosmesa6``) and ``glfw`` (needs a display). ``MUJOCO_GL`` chooses one; unset, the
+first that makes a context is used, tried in that order (:func:`gl_backend`), and when none does the
+error names each one tried and why it failed. Only a context that cannot be made means "unavailable";
+any other error passes through. Images are ``(H, W, 3)`` uint8 RGB, top
 row first. Conventions: Z up, metres; the camera's azimuth and elevation in degrees (MuJoCo's).
 """
 
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+import threading
 
 import mujoco
 import numpy as np
 
 from kinodyn.errors import KinodynError
 
-__all__ = ["OffscreenScene", "RendererUnavailableError", "available", "gl_backend", "gl_context"]
+__all__ = [
+    "BACKENDS",
+    "OffscreenScene",
+    "RendererUnavailableError",
+    "available",
+    "candidates",
+    "gl_backend",
+    "gl_context",
+    "probe",
+]
 
 
 class RendererUnavailableError(KinodynError, RuntimeError):
     """No offscreen OpenGL context could be created (OSMesa/EGL missing) or MuJoCo is not installed."""
 
 
+#: the offscreen backends, in the order they are tried when ``MUJOCO_GL`` is unset (``glfw`` only with a
+#: display)
+BACKENDS = ("egl", "osmesa", "glfw")
+#: what each backend needs
+HINTS = {
+    "egl": "EGL: a GPU driver or Mesa's EGL (Debian: apt-get install libegl1 libgl1-mesa-dri)",
+    "osmesa": "OSMesa, on the CPU (Debian: apt-get install libosmesa6)",
+    "glfw": "GLFW: a display (DISPLAY or WAYLAND_DISPLAY) and the glfw package",
+}
+ERR_NONE_WORKS = ("no offscreen OpenGL backend works here; tried {tried}. Install one of: {hints}; or set "
+                  "MUJOCO_GL to one that works")
+ERR_BAD_GL = "MUJOCO_GL must be one of {options} for offscreen rendering, got {value!r}"
+
+#: a fresh interpreter makes a context: PyOpenGL fixes its platform at its first import, so each backend
+#: is tried in a process of its own
+_PROBE = "from mujoco.{b} import GLContext\nc = GLContext(32, 32)\nc.make_current()\nc.free()\n"
+_PROBE_TIMEOUT_S = 120.0
+_chosen: dict[tuple, str] = {}
+_lock = threading.Lock()
+
+
+def candidates() -> tuple[str, ...]:
+    """The backends to try, in order: ``MUJOCO_GL`` alone when it is set; the platform PyOpenGL is
+    already fixed to (``PYOPENGL_PLATFORM``) alone; else EGL, then OSMesa, then GLFW when there is a
+    display.
+
+    Raises:
+        RendererUnavailableError: ``MUJOCO_GL`` names no offscreen backend.
+    """
+    for var in ("MUJOCO_GL", "PYOPENGL_PLATFORM"):
+        b = os.environ.get(var, "").strip().lower()
+        if b:
+            if b not in BACKENDS:
+                raise RendererUnavailableError(ERR_BAD_GL.format(options=", ".join(BACKENDS), value=b)
+                                               .replace("MUJOCO_GL", var))
+            return (b,)
+    display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    return BACKENDS if display else BACKENDS[:2]
+
+
+def probe(backend: str) -> str | None:
+    """``None`` when a fresh Python process makes an offscreen context with ``backend``, else why not
+    (the last line of its error)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYOPENGL_PLATFORM"}
+    env["MUJOCO_GL"] = backend
+    try:
+        r = subprocess.run([sys.executable, "-c", _PROBE.format(b=backend)], env=env, capture_output=True,
+                           text=True, timeout=_PROBE_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired:
+        return f"no context within {_PROBE_TIMEOUT_S:g} s"
+    if r.returncode == 0:
+        return None
+    lines = [ln.strip() for ln in r.stderr.splitlines() if ln.strip()]
+    return lines[-1] if lines else f"exit status {r.returncode}"
+
+
 def gl_backend() -> str:
-    """The offscreen OpenGL backend to use: ``MUJOCO_GL`` if set, else ``osmesa`` without a display."""
-    b = os.environ.get("MUJOCO_GL", "").strip().lower()
-    if b in ("osmesa", "egl", "glfw"):
-        return b
-    return "glfw" if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else "osmesa"
+    """The offscreen OpenGL backend to use here: the first of :func:`candidates` that makes a context
+    (tried once per process and setting).
+
+    Raises:
+        RendererUnavailableError: none works; the message names each backend tried, why it failed and
+            what it needs.
+    """
+    order = candidates()
+    key = (order, os.environ.get("MUJOCO_GL"), os.environ.get("PYOPENGL_PLATFORM"))
+    with _lock:
+        if key in _chosen:
+            return _chosen[key]
+        tried = []
+        for b in order:
+            why = probe(b)
+            if why is None:
+                _chosen[key] = b
+                return b
+            tried.append(f"{b} ({why})")
+    raise RendererUnavailableError(ERR_NONE_WORKS.format(tried="; ".join(tried),
+                                                         hints="; ".join(HINTS[b] for b in order)))
 
 
 def gl_context(width: int, height: int):
-    """An offscreen OpenGL context of ``width`` x ``height`` pixels, made current.
+    """An offscreen OpenGL context of ``width`` x ``height`` pixels with the backend of
+    :func:`gl_backend`, made current.
 
     Raises:
-        RendererUnavailableError: the backend cannot create one.
+        RendererUnavailableError: no backend works here, or the context could not be created (a library
+            missing, or the driver refused); other errors are bugs and pass through as they are.
     """
+    import importlib
+
     backend = gl_backend()
     try:
-        if backend == "osmesa":
-            from mujoco.osmesa import GLContext
-        elif backend == "egl":
-            from mujoco.egl import GLContext
-        else:
-            from mujoco.glfw import GLContext
-        ctx = GLContext(width, height)
-    except Exception as e:  # noqa: BLE001 - ImportError, RuntimeError, PyOpenGL's errors, ctypes errors
-        hint = " (Debian: apt-get install libosmesa6)" if backend == "osmesa" else ""
-        raise RendererUnavailableError(f"cannot create an offscreen OpenGL context with {backend}: {e}{hint}") \
-            from None
-    ctx.make_current()
+        module = importlib.import_module(f"mujoco.{backend}")
+        ctx = module.GLContext(width, height)
+        ctx.make_current()
+    except (ImportError, OSError, RuntimeError) as e:
+        raise RendererUnavailableError(f"cannot create an offscreen OpenGL context with {backend}: {e} "
+                                       f"(needs {HINTS[backend]})") from e
+    except Exception as e:
+        from OpenGL import error as gl_error
+
+        if isinstance(e, gl_error.Error):
+            raise RendererUnavailableError(f"cannot create an offscreen OpenGL context with {backend}: {e} "
+                                           f"(needs {HINTS[backend]})") from e
+        raise
     return ctx
 
 
 def available() -> str | None:
     """``None`` when images can be rendered here, else the reason why not."""
     try:
-        ctx = gl_context(32, 32)
+        gl_backend()
     except RendererUnavailableError as e:
         return str(e)
-    ctx.free()
     return None
 
 

@@ -50,61 +50,13 @@ from kinodyn.motion import Motion
 from kinodyn.physics import assembly, playback, recording, tracking
 from kinodyn.physics import impacts as _impacts
 from kinodyn.physics.body import BodyConfig, CharacterBody, build_body, pose_to_ctrl
+from kinodyn.physics.config import MAX_SPEED, WorldConfig
 from kinodyn.physics.handles import Character, Projectile
 from kinodyn.physics.playback import clip_qvel
 from kinodyn.physics.rollout import step_parallel
 from kinodyn.skeleton import Skeleton
 
-__all__ = ["Character", "Projectile", "World", "WorldConfig", "clip_qvel", "step_parallel"]
-
-#: A state with a joint or body speed above this (rad/s or m/s) counts as exploded.
-MAX_SPEED = 500.0
-
-
-@dataclass(frozen=True)
-class WorldConfig:
-    """Settings of a world.
-
-    Attributes:
-        fps: output frames per second (the rate of :meth:`World.step`, of recording and of divergence
-            checks).
-        substeps: physics steps per frame (dt = 1 / (fps * substeps)).
-        gravity: m/s^2 along -Z (0 for none).
-        ground: add a ground plane at z = 0.
-        friction: ground friction.
-        contact_timeconst: contact stiffness as a time constant (s); 0 uses twice the timestep (MuJoCo's
-            stiffest stable setting, which keeps a fast ball from sinking into a chest).
-        impact_gap: contacts of one pair closer in time than this (s) form one impact.
-        max_speed: speed (m/s, rad/s) above which the state counts as exploded.
-    """
-
-    fps: float = 60.0
-    substeps: int = 4
-    gravity: float = 9.81
-    ground: bool = True
-    friction: float = 1.0
-    contact_timeconst: float = 0.0
-    impact_gap: float = 0.05
-    max_speed: float = MAX_SPEED
-
-    def __post_init__(self):
-        if not (np.isfinite(self.fps) and self.fps > 0):
-            raise ParameterError(f"fps must be a positive number, got {self.fps!r}")
-        if not (isinstance(self.substeps, (int, np.integer)) and self.substeps >= 1):
-            raise ParameterError(f"substeps must be a positive integer, got {self.substeps!r}")
-        if not np.isfinite(self.gravity):
-            raise ParameterError(f"gravity must be a finite number, got {self.gravity!r}")
-        if not (np.isfinite(self.friction) and self.friction >= 0):
-            raise ParameterError(f"friction must be non-negative, got {self.friction!r}")
-        if not (np.isfinite(self.contact_timeconst) and self.contact_timeconst >= 0):
-            raise ParameterError(f"contact_timeconst must be non-negative, got {self.contact_timeconst!r}")
-        if not (np.isfinite(self.max_speed) and self.max_speed > 0):
-            raise ParameterError(f"max_speed must be positive, got {self.max_speed!r}")
-
-    @property
-    def timestep(self) -> float:
-        return 1.0 / (self.fps * self.substeps)
-
+__all__ = ["MAX_SPEED", "Character", "Projectile", "World", "WorldConfig", "clip_qvel", "step_parallel"]
 
 # --------------------------------------------------------------------------- clips
 
@@ -472,19 +424,31 @@ class World:
         """An impulsive push, now: ``impulse (3,)`` N s at ``point`` (world, default the segment's centre
         of mass) on ``body``. The velocities jump by ``M^-1 J^T impulse`` at the current pose, so the
         character's momentum changes by exactly the impulse (contacts react from the next step on).
-        Switches a kinematic character to dynamic when its ``on_impact`` says so. Recorded as an impact."""
+        Switches a kinematic character to dynamic when its ``on_impact`` says so. Recorded as an impact.
+
+        Raises:
+            ParameterError: the impulse is not a finite 3-vector, or it would make a speed exceed
+                ``max_speed`` (the state would count as exploded); the world is left as it was.
+        """
         self._ensure()
         imp = np.asarray(impulse, dtype=np.float64)
         if imp.shape != (3,) or not np.all(np.isfinite(imp)):
             raise ParameterError(f"impulse must be a finite (3,) vector in N s, got {impulse!r}")
         b = char.map.body(body)
         bid = int(char.body_ids[b])
+        before = (char.mode, char.switch_time, self.data.qpos.copy(), self.data.qvel.copy())
         if char.mode == "kinematic":
             if char.on_impact != "switch":
                 raise SimulationError(f"character {char.name!r} plays a clip and ignores impacts; switch it to "
                                       "dynamic (or set on_impact='switch') to push it")
             self.switch_to_dynamic(char)
         dv, p = _impacts.push_velocity(self.model, self.data, bid, imp, point)
+        err = _impacts.check_push(self.model, self.data.qvel + dv, self.config.max_speed, imp,
+                                  f"{char.name}/{char.map.segments[b].name}")
+        if err is not None:  # leave the world as it was
+            char.mode, char.switch_time = before[:2]
+            self.data.qpos[:], self.data.qvel[:] = before[2:]
+            raise err
         self.data.qvel[:] += dv
         self._log.add(("push", char.index, b, self._step), self.time, char.name, char.map.segments[b].name, p,
                       imp, "push", "push", 0.0, 0.0)

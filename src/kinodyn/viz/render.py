@@ -172,6 +172,7 @@ class Renderer:
         self._az = cfg.azimuth if cfg.azimuth is not None else math.degrees(math.atan2(-d[1], -d[0]))
         self._el = cfg.elevation if cfg.elevation is not None else -math.degrees(math.asin(d[2] / np.linalg.norm(d)))
         self._dist = cfg.distance
+        self._view = None  # (lookat, distance, azimuth, elevation) of the last frame
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -236,8 +237,31 @@ class Renderer:
             self._fit = self._fit_distance(np.concatenate(cur), centre)
         else:
             self._target = self._target + 0.12 * (centre - self._target)
-        self._scene.begin(self._target, self._dist or self._fit,
-                          self._az + (cfg.orbit_deg_s * (t - cfg.start) if cfg.camera == "orbit" else 0.0), self._el)
+        self._view = (self._target.copy(), self._dist or self._fit,
+                      self._az + (cfg.orbit_deg_s * (t - cfg.start) if cfg.camera == "orbit" else 0.0), self._el)
+        self._scene.begin(*self._view)
+
+    def project(self, points) -> np.ndarray:
+        """``(N, 2)`` pixel coordinates (x right, y down, from the top-left corner) of world points
+        ``(N, 3)`` in the image of the last :meth:`frame`; NaN for points behind the camera."""
+        if getattr(self, "_view", None) is None:
+            raise ParameterError("draw a frame first: the camera is placed for each frame")
+        lookat, dist, az, el = self._view
+        az, el = math.radians(az), math.radians(el)
+        fwd = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        rel = np.asarray(points, dtype=np.float64).reshape(-1, 3) - (lookat - dist * fwd)
+        depth = rel @ fwd
+        tv = math.tan(math.radians(self._scene.fovy) / 2)
+        w, h = self.config.width, self.config.height
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (0.5 + 0.5 * (rel @ right) / (depth * tv * w / h)) * w
+            y = (0.5 - 0.5 * (rel @ up) / (depth * tv)) * h
+        out = np.stack([x, y], axis=-1)
+        out[depth <= 0] = np.nan
+        return out
 
     # ------------------------------------------------------------------ one frame
     def frame(self, t: float) -> np.ndarray:
