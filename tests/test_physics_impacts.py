@@ -129,6 +129,19 @@ def test_momentum_balance_with_gravity_and_the_ground(body):
     assert mismatch < 0.01
 
 
+def test_a_parked_ball_floats_until_it_is_thrown():
+    """Regression: a ball waiting to be thrown fell below the floor forever (its gravity compensation was
+    switched on after compiling, which MuJoCo ignores), reaching max_speed after 51 s."""
+    w = World()
+    ball = w.add_projectile(2.0, 0.1)
+    p0 = ball.position
+    w.run(60.0)
+    np.testing.assert_allclose(ball.position, p0, atol=1e-9)
+    ball.set_state([0.0, 0.0, 2.0], [1.0, 0.0, 0.0])  # thrown: gravity acts again
+    w.run(0.5)
+    assert ball.velocity[2] == pytest.approx(-9.81 * 0.5, rel=0.02)
+
+
 def test_push_changes_momentum_by_the_impulse(body):
     w = World(gravity=0.0, ground=False)
     c = w.add_character(body)

@@ -70,7 +70,9 @@ def attach_character(spec: mujoco.MjSpec, body: CharacterBody, name: str, at: np
 
 def add_ball(spec: mujoco.MjSpec, name: str, k: int, mass: float, radius: float, timeconst: float) -> None:
     """Add ball number ``k`` (a free sphere of ``mass`` kg and ``radius`` m) parked below the floor."""
-    b = spec.worldbody.add_body(name=name, pos=[0.0, 3.0 * k, -10.0 - 3.0 * k])
+    # compiled with gravity compensation, so that switching it off when thrown (and on when parked) works:
+    # MuJoCo applies it only to bodies that had it at compile time
+    b = spec.worldbody.add_body(name=name, pos=[0.0, 3.0 * k, -10.0 - 3.0 * k], gravcomp=1.0)
     b.add_freejoint(name=f"{name}/free")
     b.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius, 0, 0], mass=mass,
                rgba=[0.9, 0.3, 0.2, 1.0], priority=1, solref=[timeconst, 1.0], friction=[0.5, 0.005, 0.0001])
