@@ -1,6 +1,6 @@
-"""kinodyn.viz.render: offscreen CPU rendering (MuJoCo + OSMesa) to MP4, GIF and PNG.
+"""kinodyn.viz.render: offscreen rendering (MuJoCo through kinodyn.physics.render) to MP4, GIF and PNG.
 
-Skipped when no offscreen OpenGL context can be made (Debian: apt-get install libosmesa6).
+Skipped when no offscreen OpenGL backend can make a context here (the reason names each one tried).
 """
 
 from __future__ import annotations

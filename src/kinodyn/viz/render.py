@@ -1,4 +1,4 @@
-"""Videos and still frames rendered offscreen on the CPU with MuJoCo's renderer (OSMesa).
+"""Videos and still frames rendered offscreen with MuJoCo's renderer (EGL, else OSMesa on the CPU).
 
 The same :class:`~kinodyn.viz.world.World` as the HTML viewer is drawn: capsules for bones, a chequered
 floor (1 m squares), foot-contact discs, impact arrows, root trajectories, names above heads, and 2-D
