@@ -85,11 +85,61 @@ def test_ball_switches_a_kinematic_walker_to_dynamic(body):
     assert 0.9 < c.switch_time < 1.05
     hit = w.impacts[0]
     assert 0.9 < hit.time < 1.05
-    # the trajectory keeps the clip up to the impact
+    # the trajectory is the clip up to the impact (frame k of the 60 fps walk at t = k / 60 s, stood on
+    # the floor: up to one vertical shift), and the simulation's own after it
     sim = c.trajectory()
-    ref = w.trajectory(c, stop=0.9)
-    assert ref.num_frames == 55
-    np.testing.assert_allclose(sim.root_pos[:55], ref.root_pos)
+    assert w.trajectory(c, stop=0.9).num_frames == 55
+    gp, ref = sim.global_positions(), walk.global_positions()
+    kept = c.map.body_joint
+    hit_frame = int(np.floor(hit.time * 60.0))
+    np.testing.assert_allclose(gp[:hit_frame, kept, :2], ref[:hit_frame, kept, :2], atol=1e-9)
+    dz = gp[:hit_frame, kept, 2] - ref[:hit_frame, kept, 2]
+    np.testing.assert_allclose(dz, dz[0, 0], atol=1e-9)
+    late = np.arange(hit_frame + 6, 72)  # 0.1 s after the hit, up to 1.2 s (the walk has 121 frames)
+    assert np.abs(gp[late][..., kept, :2] - ref[late][..., kept, :2]).max() > 0.02, "the hit changed nothing"
+
+
+def test_momentum_balance_with_gravity_and_the_ground(body):
+    """A ball thrown at a character standing on the floor under gravity: the total momentum of character
+    and ball changes by exactly the impulse of gravity and of the ground's contact forces (summed over
+    every step), so the ball's loss went into the body."""
+    w = World(fps=240.0, substeps=1)  # one physics step per frame: the ground impulse of every step
+    c = w.add_character(body)
+    w.run(0.1)
+    ball = w.throw(c, "chest", mass=3.0, radius=0.1, speed=10.0, direction=0.3, height=1.3)
+    m, d = w.model, w.data
+    ground = m.geom("ground").id
+    p0, ball0 = c.momentum() + ball.momentum, ball.momentum
+    on_ground, f6 = np.zeros(3), np.zeros(6)
+    steps = round(0.5 / w.dt)
+    for _ in range(steps):
+        w.step()
+        for i in range(d.ncon):  # the contacts (and forces) this step used
+            g1, g2 = d.contact.geom1[i], d.contact.geom2[i]
+            if ground in (g1, g2):
+                mujoco.mj_contactForce(m, d, i, f6)
+                f_on_2 = d.contact.frame[i].reshape(3, 3).T @ f6[:3]
+                on_ground += (f_on_2 if g1 == ground else -f_on_2) * w.dt
+    gravity = (c.mass + ball.mass) * np.array([0.0, 0.0, -w.config.gravity]) * steps * w.dt
+    change = c.momentum() + ball.momentum - p0
+    lost = np.linalg.norm(ball0 - ball.momentum)
+    assert lost > 10.0 and w.impacts  # a real hit
+    mismatch = np.linalg.norm(change - gravity - on_ground) / lost
+    print(f"gravity and ground: ball lost {lost:.2f} N s, momentum balance off by {mismatch:.2e} of it")
+    assert mismatch < 0.01
+
+
+def test_a_parked_ball_floats_until_it_is_thrown():
+    """Regression: a ball waiting to be thrown fell below the floor forever (its gravity compensation was
+    switched on after compiling, which MuJoCo ignores), reaching max_speed after 51 s."""
+    w = World()
+    ball = w.add_projectile(2.0, 0.1)
+    p0 = ball.position
+    w.run(60.0)
+    np.testing.assert_allclose(ball.position, p0, atol=1e-9)
+    ball.set_state([0.0, 0.0, 2.0], [1.0, 0.0, 0.0])  # thrown: gravity acts again
+    w.run(0.5)
+    assert ball.velocity[2] == pytest.approx(-9.81 * 0.5, rel=0.02)
 
 
 def test_push_changes_momentum_by_the_impulse(body):

@@ -70,7 +70,6 @@ def test_feature_vectors(walking):
     v = st.vector(bodies=spine)
     assert v.shape == (len(spine) * 13 + 3 + 3 + 2,)
     assert np.isfinite(v).all()
-    # relative to the centre of mass's floor point: moving the character does not change it
     v_all = st.vector()
     assert v_all.shape == (c.map.num_bodies * 13 + 8,)
     assert st.vector(parts=("com",))[:2] == pytest.approx([0.0, 0.0])
@@ -79,6 +78,25 @@ def test_feature_vectors(walking):
     with pytest.raises(ParameterError):
         st.vector(bodies=["Tail"])
     assert set(FEATURE_PARTS) == {"pos", "quat", "linvel", "angvel", "com", "com_vel", "feet"}
+
+
+def test_relative_features_do_not_depend_on_where_the_character_stands():
+    """Features are relative to the centre of mass's floor point: the same pose moved across the floor
+    gives the same vector; absolute positions move with it."""
+    walk = library.load("walk")
+    shift = np.array([3.0, -2.0, 0.0])
+    states = []
+    for at in (np.zeros(3), shift):
+        w = World()
+        c = w.add_character(build_body(humanoid()), at=(at[0], at[1], 0.0))
+        c.play(walk, at=(at[0], at[1], 0.0))
+        w.run(0.3)
+        states.append(character_state(w, c))
+    here, there = states
+    np.testing.assert_allclose(there.pos - here.pos, np.broadcast_to(shift, here.pos.shape), atol=1e-9)
+    np.testing.assert_allclose(there.vector(), here.vector(), atol=1e-9)
+    absolute = there.vector(parts=("pos",), relative=False) - here.vector(parts=("pos",), relative=False)
+    np.testing.assert_allclose(absolute, np.tile(shift, len(here.pos)), atol=1e-9)
 
 
 def test_batched_states_equal_single_states(walking):

@@ -1,6 +1,6 @@
-"""kinodyn.viz.render: offscreen CPU rendering (MuJoCo + OSMesa) to MP4, GIF and PNG.
+"""kinodyn.viz.render: offscreen rendering (MuJoCo through kinodyn.physics.render) to MP4, GIF and PNG.
 
-Skipped when no offscreen OpenGL context can be made (Debian: apt-get install libosmesa6).
+Skipped when no offscreen OpenGL backend can make a context here (the reason names each one tried).
 """
 
 from __future__ import annotations
@@ -74,12 +74,46 @@ def test_png_still_shows_the_characters_in_their_colours(tmp_path, clips):
     assert blue > 50 and orange > 50
 
 
+def _pixels(img: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """``(N, 3)`` colours in [0, 1] of the pixels under image points ``(N, 2)`` (x right, y down)."""
+    h, w = img.shape[:2]
+    ix = np.clip(np.floor(xy[:, 0]).astype(int), 0, w - 1)
+    iy = np.clip(np.floor(xy[:, 1]).astype(int), 0, h - 1)
+    return img[iy, ix].astype(float) / 255
+
+
 def test_frames_follow_the_scene_clock(clips):
+    """Each frame shows the scene at its time: the character's silhouette lies over its projected bones
+    at that time (not where it stands a second later), the floor colour beside it, and an impact marker
+    appears at its point from the impact's time on."""
+    from kinodyn.viz import style
+
     w = build_world(clips["walk"], [Impact(0.1, (0.5, 0.0, 1.0), (0.0, 20.0, 0.0))])
-    cfg = render.RenderConfig(fps=30, end=0.2, **_FAST)
-    imgs = list(render.frames(w, cfg))
-    assert len(imgs) == 7
-    assert all(i.shape == (_H, _W, 3) and i.dtype == np.uint8 for i in imgs)
+    cfg = render.RenderConfig(width=320, height=192, fps=30, end=0.2, shadows=False, hud=False, camera="fixed")
+    ch = w.characters[0]
+    floor = np.array(style.rgb(style.GROUND_COLOR))
+    red = np.array(style.rgb(style.IMPACT_COLOR))
+    with render.Renderer(w, cfg) as r:
+        for t in np.arange(7) / 30.0:
+            img = r.frame(float(t))
+            assert img.shape == (192, 320, 3) and img.dtype == np.uint8
+
+            def bones(time):
+                p = ch.positions[min(round(time * ch.fps), ch.num_frames - 1)]
+                return 0.5 * (p[ch.parents[1:]] + p[1:])  # bone midpoints
+
+            sat = np.ptp(_pixels(img, r.project(bones(t))), axis=1)
+            assert (sat > 0.12).mean() > 0.9, f"t={t:.2f}: the character is not where its bones are"
+            later = np.ptp(_pixels(img, r.project(bones(t + 1.0))), axis=1)
+            assert (later > 0.12).mean() < 0.3, f"t={t:.2f}: the frame shows the character a second later"
+            side = bones(t) * [1, 1, 0] + [0.0, 1.5, 0.0]  # on the floor 1.5 m beside it
+            beside = _pixels(img, r.project(side))
+            assert np.ptp(beside, axis=1).max() < 0.08 and beside.min() > 0.6, f"t={t:.2f}: no floor beside"
+            marker = _pixels(img, r.project([[0.5, 0.0, 1.0]]))[0]
+            if t < 0.1 - 0.02 - 1e-9:
+                assert np.abs(marker - floor).max() < 0.1, f"t={t:.2f}: the impact shows before it happens"
+            else:
+                assert np.abs(marker - red).max() < 0.25, f"t={t:.2f}: no impact marker at its point"
 
 
 def test_orbit_camera_and_bones_body(tmp_path, clips):

@@ -72,6 +72,11 @@ def _side(name: str) -> str | None:
     return None
 
 
+def name_side(name: str) -> str | None:
+    """``"left"`` or ``"right"`` when a joint name says so (``LeftFoot``, ``l_ankle``), else ``None``."""
+    return _side(name)
+
+
 def find_feet(skeleton: Skeleton, feet: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
     """Joint indices of each foot (``{"left": ..., "right": ...}``), found by joint names.
 

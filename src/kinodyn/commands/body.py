@@ -56,10 +56,8 @@ def load_skeleton(source: str, scale=None, up=None):
 
 
 def run(args) -> int:
-    import mujoco
-
     from kinodyn.io.atomic import atomic_write_bytes
-    from kinodyn.physics.body import BodyConfig, build_body
+    from kinodyn.physics.body import BodyConfig, build_body, model_from_xml
 
     sk = load_skeleton(args.source, args.scale, args.up)
     cfg = BodyConfig(mass=args.mass, root=args.root, merge_toes=args.merge_toes,
@@ -67,7 +65,7 @@ def run(args) -> int:
     body = build_body(sk, cfg)
     xml = body.to_xml()
     try:
-        model = mujoco.MjModel.from_xml_string(xml)
+        model = model_from_xml(xml)
     except ValueError as e:  # pragma: no cover - a bug, not bad input
         raise KinodynError(f"internal: the MJCF does not compile in MuJoCo: {e}") from None
     atomic_write_bytes(args.output, xml.encode())

@@ -1,7 +1,7 @@
-"""``kinodyn render FILE... -o out.mp4``: a video (MP4, GIF) or still (PNG) rendered on the CPU.
+"""``kinodyn render FILE... -o out.mp4``: a video (MP4, GIF) or still (PNG) rendered offscreen.
 
-Same inputs and overlays as ``kinodyn view``; MuJoCo's renderer draws offscreen (OSMesa when there is no
-display, ``MUJOCO_GL`` to choose).
+Same inputs and overlays as ``kinodyn view``; MuJoCo's renderer draws offscreen with the first backend
+that works here (EGL, then OSMesa, then GLFW with a display; ``MUJOCO_GL`` to choose).
 """
 
 from __future__ import annotations

@@ -11,6 +11,12 @@ and every push is recorded as an :class:`Impact`: the time it started, the body 
 impulse-weighted contact point and the total impulse on that body. Contacts of the same pair that
 follow each other within ``gap`` seconds are one impact.
 
+The impact stage of a :class:`~kinodyn.physics.world.World` is here too, as functions of the model, the
+data and the handles: where a landmark will be when a ball arrives (:func:`landmark_point`), the
+velocity jump of a push (:func:`push_velocity`), whether characters are close enough to watch their
+contacts (:func:`characters_close`) and the contacts of the last step logged as impacts, switching a hit
+kinematic character to dynamic (:func:`watch_contacts`).
+
 Units: metres, seconds, kilograms, newton-seconds. World frame Z up.
 """
 
@@ -22,8 +28,20 @@ import mujoco
 import numpy as np
 
 from kinodyn.errors import ParameterError
+from kinodyn.physics.assembly import geom_volume
 
-__all__ = ["Impact", "ImpactLog", "contact_impulses", "launch"]
+__all__ = [
+    "Impact",
+    "ImpactLog",
+    "aim",
+    "characters_close",
+    "check_push",
+    "contact_impulses",
+    "landmark_point",
+    "launch",
+    "push_velocity",
+    "watch_contacts",
+]
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 
@@ -209,3 +227,131 @@ class ImpactLog:
     def all(self) -> list[Impact]:
         """Closed impacts and the ones still in contact, sorted by time."""
         return sorted(self.impacts + [self._impact(ev) for ev in self._open.values()], key=lambda i: i.time)
+
+
+# --------------------------------------------------------------------------- the world's impact stage
+
+
+def landmark_point(model: mujoco.MjModel, data: mujoco.MjData, char, b: int, step: int) -> np.ndarray:
+    """``(3,)`` world position of the volume-weighted centre of segment ``b``'s geometry at world step
+    ``step``: predicted from the clip for a kinematic character, the current one otherwise."""
+    m = model
+    if char.mode == "kinematic" and char.clip is not None:
+        d = mujoco.MjData(m)
+        d.qpos[:] = data.qpos
+        d.mocap_pos[:] = data.mocap_pos
+        d.mocap_quat[:] = data.mocap_quat
+        d.qpos[char.qadr:char.qadr + char.map.nq] = char.clip.state(step)[0]
+    else:
+        d = data
+    mujoco.mj_kinematics(m, d)
+    bid = char.body_ids[b]
+    gs = np.arange(m.body_geomadr[bid], m.body_geomadr[bid] + m.body_geomnum[bid])
+    vol = np.array([geom_volume(m, g) for g in gs])
+    return (d.geom_xpos[gs] * vol[:, None]).sum(axis=0) / vol.sum()
+
+
+def aim(landmark_at, t_now: float, at: float | None, speed: float, direction, height: float, distance: float,
+        gravity: float):
+    """Launch of a ball at a moving landmark: ``(start (3,), velocity (3,), launch_time)``.
+
+    ``landmark_at(t)`` is the landmark's ``(3,)`` position at world time ``t``; ``at`` the arrival time
+    (``None``: launch now at ``t_now``, aimed where the landmark is when the ball arrives, refined three
+    times); the other arguments as :func:`launch` takes them, ``gravity`` in m/s^2 along -Z.
+
+    Raises:
+        ParameterError: the ball cannot arrive at ``at`` (its flight would have to start in the past).
+    """
+    t_hit = t_now if at is None else float(at)
+    for _ in range(3):
+        target = landmark_at(t_hit)
+        start, vel, flight = launch(target, speed, direction, height, distance, np.array([0.0, 0.0, -gravity]))
+        if at is None:
+            t_hit = t_now + flight
+        else:
+            break
+    t_launch = t_hit - flight if at is not None else t_now
+    if t_launch < t_now - 1e-9:
+        raise ParameterError(f"cannot make the ball arrive at t={t_hit:.3f} s: its flight takes {flight:.3f} s "
+                             f"and the world is at t={t_now:.3f} s")
+    return start, vel, t_launch
+
+
+def push_velocity(model: mujoco.MjModel, data: mujoco.MjData, bid: int, impulse: np.ndarray, point=None):
+    """``(nv,)`` velocity jump ``M^-1 J^T impulse`` of an impulse ``(3,)`` N s at world ``point`` (default
+    the body's centre of mass) on MuJoCo body ``bid``, at the current pose. Returns ``(dv, point)``."""
+    m, d = model, data
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    mujoco.mj_crb(m, d)
+    mujoco.mj_factorM(m, d)
+    if point is None:
+        p = d.xipos[bid].copy()
+    else:
+        p = np.asarray(point, dtype=np.float64)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ParameterError(f"point must be a finite (3,) world position, got {point!r}")
+    jacp = np.zeros((3, m.nv))
+    mujoco.mj_jac(m, d, jacp, None, p, bid)
+    dv = np.zeros((1, m.nv))
+    mujoco.mj_solveM(m, d, dv, (jacp.T @ impulse)[None, :])
+    return dv[0], p
+
+
+def check_push(model: mujoco.MjModel, qvel: np.ndarray, max_speed: float, impulse: np.ndarray,
+               where: str) -> ParameterError | None:
+    """The error to raise when a push would leave ``qvel (nv,)`` non-finite or with a speed above
+    ``max_speed`` (m/s or rad/s), else ``None``; ``where`` names the body pushed."""
+    speed = np.abs(np.nan_to_num(qvel, nan=np.inf))
+    if not len(speed) or speed.max() <= max_speed:
+        return None
+    dof = int(np.argmax(speed))
+    return ParameterError(f"an impulse of {np.linalg.norm(impulse):.4g} N s on {where} would move "
+                          f"{model.body(model.dof_bodyid[dof]).name!r} at {speed[dof]:.4g} m/s or rad/s, above "
+                          f"max_speed ({max_speed:g}); push with a smaller impulse or on a heavier body")
+
+
+def characters_close(data: mujoco.MjData, characters, reach: np.ndarray) -> bool:
+    """Whether two characters may touch within the next frame (their roots closer than their reaches
+    ``(C,)`` plus a margin); contacts between characters are watched only then."""
+    n = len(characters)
+    if n < 2:
+        return False
+    d = data
+    pos = np.empty((n, 3))
+    for i, c in enumerate(characters):
+        pos[i] = d.mocap_pos[c.mocap_id] if c.mocap_id >= 0 else d.qpos[c.qadr:c.qadr + 3]
+    dist = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
+    near = dist < reach[:, None] + reach[None, :] + 0.5
+    np.fill_diagonal(near, False)
+    return bool(near.any())
+
+
+def watch_contacts(model: mujoco.MjModel, data: mujoco.MjData, owner: np.ndarray, dt: float, t: float,
+                   characters, projectiles, log: ImpactLog) -> bool:
+    """Log the last step's contacts of characters with balls and each other in ``log`` (at world time
+    ``t``) and switch a hit kinematic character whose ``on_impact`` is ``"switch"`` to dynamic, keeping
+    the state this step produced. Returns whether someone switched."""
+    hits = contact_impulses(model, data, owner, dt)
+    switched = False
+    for ga, gb, p, imp, fn in hits:
+        ca = characters[owner[ga]]
+        ob = owner[gb]
+        if ob >= 0:
+            other = characters[ob]
+            if ca.mode == "kinematic" and ca.on_impact != "switch":
+                continue  # a clip that does not react (an attacker's fist): nothing happens to it
+            src = f"{other.name}/{model.body(model.geom_bodyid[gb]).name.split('/', 1)[-1]}"
+            kind = "character"
+        else:
+            src = projectiles[-2 - ob].name
+            kind = "projectile"
+        b = int(np.searchsorted(ca.body_ids, model.geom_bodyid[ga]))
+        log.add((ca.index, b, src), t, ca.name, ca.map.segments[b].name, p, imp, src, kind, fn, dt)
+        if ca.mode == "kinematic" and ca.on_impact == "switch":
+            # keep the state this step produced (it holds the impact) and simulate from here on
+            ca.mode = "dynamic"
+            ca.switch_time = t
+            switched = True
+    log.close_stale(t)
+    return switched

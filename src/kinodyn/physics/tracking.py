@@ -42,6 +42,7 @@ __all__ = [
     "apply_gains",
     "default_gains",
     "feedforward_targets",
+    "gain_multipliers",
     "natural_frequency",
     "set_joint_passives",
     "subtree_inertia",
@@ -170,7 +171,9 @@ def _is_under(parent, k, b):
     return False
 
 
-def _multipliers(bmap, cfg: PDConfig) -> np.ndarray:
+def gain_multipliers(bmap, cfg: PDConfig) -> np.ndarray:
+    """``(A,)`` stiffness multiplier ``s_j`` of each actuated segment: its joint's override, else its
+    class row of the gains table."""
     out = np.zeros(len(bmap.actuated))
     for k, b in enumerate(bmap.actuated):
         s = bmap.segments[b]
@@ -188,7 +191,7 @@ def default_gains(model: mujoco.MjModel, bmap, cfg: PDConfig, body_offset: int =
         inertia = subtree_inertia(model, bmap, body_offset)[bmap.actuated]
     else:
         inertia = np.full(len(bmap.actuated), cfg.reference_inertia)
-    s = _multipliers(bmap, cfg)
+    s = gain_multipliers(bmap, cfg)
     kp = s * inertia * w * w
     kv = 2.0 * cfg.damping_ratio * np.sqrt(s) * inertia * w
     return kp, kv
@@ -265,8 +268,6 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
     hinge by ``tau / kp``: near the target the servo then applies ``kp * error + tau``. Ankles and toes get
     none (where the sole presses is not known). A fixed-root character's feet carry nothing.
     """
-    from kinodyn.math import quat
-
     bm = body.map
     mode = body.pd.feedforward
     out = np.array(ctrl, dtype=np.float64, copy=True)
@@ -276,15 +277,32 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
     dyn = mode == "dynamics" and qvel is not None and dt is not None and n > 1
     m = body.model()
     d = mujoco.MjData(m)
-    free = bm.segments[0].kind == "free"
-    soles = {}  # side -> box geoms of the foot and its toes
+    tau, coms, supports = _clip_torques(m, d, bm, qpos, qvel if dyn else None, dt, root_quat, contact_height)
+    a_com = np.gradient(np.gradient(coms, dt, axis=0), dt, axis=0) if dyn else np.zeros((n, 3))
+    _less_ground_force(m, d, qpos, tau, coms, supports, a_com, body.config.friction, dyn)
+    _fold_torques(out, bm, body.kp, tau, lead_steps)
+    return out
+
+
+def _sole_geoms(m: mujoco.MjModel, bm) -> dict:
+    """Side -> ``(body id, geom)`` of the boxes of the foot and its toes (stand-alone model)."""
+    soles = {}
     for side, fb in bm.feet.items():
         segs = [fb] + [b for b, s in enumerate(bm.segments) if s.cls == "toe" and s.side == side]
         soles[side] = [(b + 1, g) for b in segs for g in range(m.body_geomadr[b + 1],
                                                                 m.body_geomadr[b + 1] + m.body_geomnum[b + 1])
                        if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX]
-    mass = float(m.body_mass[1:].sum())
-    g = np.array(m.opt.gravity)
+    return soles
+
+
+def _clip_torques(m, d, bm, qpos, qvel, dt, root_quat, contact_height):
+    """Inverse dynamics of each sample (``mj_rne``; with the clip's velocities and accelerations when
+    ``qvel`` is given): ``tau (n, nv)``, the centres of mass ``(n, 3)`` and per sample the feet on the
+    floor as ``(body id, sole point (3,))``."""
+    n = len(qpos)
+    dyn = qvel is not None
+    free = bm.segments[0].kind == "free"
+    soles = _sole_geoms(m, bm)
     if dyn:
         qacc = np.gradient(np.asarray(qvel, dtype=np.float64), dt, axis=0)
     tau = np.zeros((n, m.nv))
@@ -304,7 +322,7 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
         coms[i] = d.subtree_com[1]
         support = []
         if free:
-            for side, geoms in soles.items():
+            for geoms in soles.values():
                 if not geoms:
                     continue
                 corners = np.concatenate([_box_corners(m, d, gg) for _, gg in geoms])
@@ -312,9 +330,16 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
                 if low < contact_height:
                     support.append((geoms[0][0], corners[corners[:, 2] < low + 0.01].mean(axis=0)))
         supports.append(support)
-    a_com = np.gradient(np.gradient(coms, dt, axis=0), dt, axis=0) if dyn else np.zeros((n, 3))
+    return tau, coms, supports
+
+
+def _less_ground_force(m, d, qpos, tau, coms, supports, a_com, mu: float, dyn: bool) -> None:
+    """Subtract from ``tau (n, nv)`` the joint torques ``J^T f`` of the ground's force under the feet on
+    the floor: ``f = M (a_com - g)`` (vertical only unless ``dyn``) within the friction cone ``mu``,
+    split between two feet so the shares' centre lies under the centre of mass."""
+    mass = float(m.body_mass[1:].sum())
+    g = np.array(m.opt.gravity)
     jacp = np.zeros((3, m.nv))
-    mu = body.config.friction
     for i, support in enumerate(supports):
         if not support:
             continue
@@ -339,7 +364,14 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
         for (bid, p), w in zip(support, share):
             mujoco.mj_jac(m, d, jacp, None, p, bid)
             tau[i] -= jacp.T @ (w * f)
-    kp = body.kp
+
+
+def _fold_torques(out: np.ndarray, bm, kp: np.ndarray, tau: np.ndarray, lead_steps) -> None:
+    """Turn each servo target of ``out (n, nu)`` by its torque over its gain ``kp (A,)`` (ankles and
+    toes excepted), reading ``tau (n, nv)`` ``lead_steps (nu,)`` samples behind."""
+    from kinodyn.math import quat
+
+    n = len(out)
     rows = np.arange(n)
     for k, b in enumerate(bm.actuated):
         s = bm.segments[b]
@@ -351,4 +383,3 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
             out[:, a:a + 4] = quat.mul(out[:, a:a + 4], quat.from_rotvec(tau[src, v:v + 3] / kp[k]))
         else:
             out[:, a] += tau[src, v] / kp[k]
-    return out

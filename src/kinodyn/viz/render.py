@@ -1,28 +1,30 @@
-"""Videos and still frames rendered offscreen on the CPU with MuJoCo's renderer (OSMesa).
+"""Videos and still frames rendered offscreen with MuJoCo's renderer (EGL, else OSMesa on the CPU).
 
 The same :class:`~kinodyn.viz.world.World` as the HTML viewer is drawn: capsules for bones, a chequered
 floor (1 m squares), foot-contact discs, impact arrows, root trajectories, names above heads, and 2-D
 support-phase bars with a playhead at the bottom. Frames go to MP4 (H.264 through the ``imageio-ffmpeg``
 wheel, which ships its own ffmpeg), GIF (Pillow) or PNG (one frame).
 
-Offscreen OpenGL: ``MUJOCO_GL`` picks the backend (``osmesa``, ``egl``, ``glfw``); when it is unset and
-there is no display, OSMesa is used (Debian: ``apt-get install libosmesa6``). Conventions: Z up,
-metres, seconds. Images are ``(H, W, 3)`` uint8 RGB, top row first.
+This module decides what to draw; the MuJoCo drawing itself (the OpenGL context, the scene of
+primitives, the pixels) is :mod:`kinodyn.physics.render`, which also picks the offscreen OpenGL backend
+(``MUJOCO_GL``: ``osmesa``, ``egl``, ``glfw``). Conventions: Z up, metres, seconds. Images are
+``(H, W, 3)`` uint8 RGB, top row first.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from kinodyn.errors import KinodynError, ParameterError
+from kinodyn.errors import ParameterError
 from kinodyn.io.atomic import atomic_path
+from kinodyn.physics import render as gl
+from kinodyn.physics.render import RendererUnavailableError, available, gl_backend
 from kinodyn.viz import style
 from kinodyn.viz.world import World, build_world
 
@@ -32,6 +34,7 @@ __all__ = [
     "RenderResult",
     "Renderer",
     "RendererUnavailableError",
+    "available",
     "frames",
     "gl_backend",
     "render",
@@ -42,10 +45,6 @@ VIDEO_FORMATS = (".mp4", ".gif", ".png")
 _HOLD_IMPACT_S = 0.8  # how long an impact arrow stays visible (as in the page)
 _BAR_H = 12  # pixel height of one phase bar
 _VIEW_DIR = np.array([0.45, -1.0, 0.42])  # from the target towards the camera (same as the page)
-
-
-class RendererUnavailableError(KinodynError, RuntimeError):
-    """No offscreen OpenGL context could be created (OSMesa/EGL missing) or MuJoCo is not installed."""
 
 
 @dataclass(frozen=True)
@@ -109,47 +108,7 @@ class RenderResult:
     seconds: float
 
 
-# --------------------------------------------------------------------------- OpenGL
-
-
-def gl_backend() -> str:
-    """The offscreen OpenGL backend to use: ``MUJOCO_GL`` if set, else ``osmesa`` without a display."""
-    b = os.environ.get("MUJOCO_GL", "").strip().lower()
-    if b in ("osmesa", "egl", "glfw"):
-        return b
-    return "glfw" if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else "osmesa"
-
-
-def _gl_context(width: int, height: int):
-    backend = gl_backend()
-    try:
-        if backend == "osmesa":
-            from mujoco.osmesa import GLContext
-        elif backend == "egl":
-            from mujoco.egl import GLContext
-        else:
-            from mujoco.glfw import GLContext
-        ctx = GLContext(width, height)
-    except Exception as e:  # noqa: BLE001 - ImportError, RuntimeError, PyOpenGL's errors, ctypes errors
-        hint = " (Debian: apt-get install libosmesa6)" if backend == "osmesa" else ""
-        raise RendererUnavailableError(f"cannot create an offscreen OpenGL context with {backend}: {e}{hint}") \
-            from None
-    ctx.make_current()
-    return ctx
-
-
-def available() -> str | None:
-    """``None`` when videos can be rendered here, else the reason why not."""
-    try:
-        import mujoco  # noqa: F401
-    except ImportError:
-        return "MuJoCo is not installed (pip install 'kinodyn[physics]')"
-    try:
-        ctx = _gl_context(32, 32)
-    except RendererUnavailableError as e:
-        return str(e)
-    ctx.free()
-    return None
+# --------------------------------------------------------------------------- scene
 
 
 def _hex_rgb(c: str) -> str:
@@ -200,32 +159,11 @@ class Renderer:
     ``with``). Mutable: the camera follows the characters from one frame to the next."""
 
     def __init__(self, world: World, config: RenderConfig = RenderConfig()):
-        try:
-            import mujoco
-        except ImportError:
-            raise RendererUnavailableError("MuJoCo is not installed (pip install 'kinodyn[physics]')") from None
-        self._mj = mujoco
         self.world = world
         w, h = int(config.width) // 2 * 2, int(config.height) // 2 * 2
         self.config = cfg = replace(config, width=w, height=h)
-        self._ctx = _gl_context(w, h)
-        try:
-            self.model = mujoco.MjModel.from_xml_string(_model_xml(world, cfg))
-            self.data = mujoco.MjData(self.model)
-            mujoco.mj_forward(self.model, self.data)
-            self._con = mujoco.MjrContext(self.model, mujoco.mjtFontScale.mjFONTSCALE_100)
-            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
-        except Exception:
-            self._ctx.free()
-            raise
         n_geoms = 64 + sum(2 * len(c.parents) + 8 + 120 for c in world.characters) + 3 * len(world.impacts)
-        self._scn = mujoco.MjvScene(self.model, n_geoms)
-        self._opt = mujoco.MjvOption()
-        self._pert = mujoco.MjvPerturb()
-        self._cam = mujoco.MjvCamera()
-        self._cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        self._rect = mujoco.MjrRect(0, 0, w, h)
-        self._rgb = np.empty((h, w, 3), dtype=np.uint8)
+        self._scene = gl.OffscreenScene(_model_xml(world, cfg), w, h, n_geoms)
         self._rgba = [style.rgba(c.color) for c in world.characters]
         self._target = None
         self._trails = [self._trail(c) for c in world.characters]
@@ -234,13 +172,13 @@ class Renderer:
         self._az = cfg.azimuth if cfg.azimuth is not None else math.degrees(math.atan2(-d[1], -d[0]))
         self._el = cfg.elevation if cfg.elevation is not None else -math.degrees(math.asin(d[2] / np.linalg.norm(d)))
         self._dist = cfg.distance
+        self._view = None  # (lookat, distance, azimuth, elevation) of the last frame
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
-        if getattr(self, "_ctx", None) is not None:
-            self._con.free()
-            self._ctx.free()
-            self._ctx = None
+        if getattr(self, "_scene", None) is not None:
+            self._scene.close()
+            self._scene = None
 
     def __enter__(self):
         return self
@@ -269,36 +207,6 @@ class Renderer:
             bars.append((ph.label, row))
         return bars
 
-    def _geom(self, gtype, rgba, label: str = ""):
-        scn = self._scn
-        if scn.ngeom >= scn.maxgeom:
-            return None
-        g = scn.geoms[scn.ngeom]
-        self._mj.mjv_initGeom(g, gtype, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
-        if label:
-            g.label = label
-        scn.ngeom += 1
-        return g
-
-    def _connector(self, gtype, width: float, a, b, rgba) -> None:
-        if np.linalg.norm(np.asarray(b) - np.asarray(a)) < 1e-6:
-            return
-        g = self._geom(gtype, rgba)
-        if g is not None:
-            self._mj.mjv_connector(g, gtype, width, np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
-
-    def _sphere(self, p, r: float, rgba, label: str = "") -> None:
-        g = self._geom(self._mj.mjtGeom.mjGEOM_SPHERE, rgba, label)
-        if g is not None:
-            g.size[:] = r
-            g.pos[:] = p
-
-    def _disc(self, p, r: float, rgba) -> None:
-        g = self._geom(self._mj.mjtGeom.mjGEOM_CYLINDER, rgba)
-        if g is not None:
-            g.size[:] = (r, r, 0.003)
-            g.pos[:] = p
-
     def _fit_distance(self, pts: np.ndarray, target: np.ndarray) -> float:
         """Camera distance that keeps every point of ``pts (N, 3)`` in the picture (as the page does)."""
         az, el = math.radians(self._az), math.radians(self._el)
@@ -306,7 +214,7 @@ class Renderer:
         right = np.cross(fwd, [0.0, 0.0, 1.0])
         right /= np.linalg.norm(right)
         up = np.cross(right, fwd)
-        tv = math.tan(math.radians(float(self.model.vis.global_.fovy)) / 2)
+        tv = math.tan(math.radians(self._scene.fovy) / 2)
         th = tv * self.config.width / self.config.height
         d = pts - target
         need = np.maximum(np.abs(d @ right) / th, np.abs(d @ up) / tv) - d @ fwd
@@ -329,23 +237,40 @@ class Renderer:
             self._fit = self._fit_distance(np.concatenate(cur), centre)
         else:
             self._target = self._target + 0.12 * (centre - self._target)
-        cam = self._cam
-        cam.lookat[:] = self._target
-        cam.distance = self._dist or self._fit
-        cam.azimuth = self._az + (cfg.orbit_deg_s * (t - cfg.start) if cfg.camera == "orbit" else 0.0)
-        cam.elevation = self._el
+        self._view = (self._target.copy(), self._dist or self._fit,
+                      self._az + (cfg.orbit_deg_s * (t - cfg.start) if cfg.camera == "orbit" else 0.0), self._el)
+        self._scene.begin(*self._view)
+
+    def project(self, points) -> np.ndarray:
+        """``(N, 2)`` pixel coordinates (x right, y down, from the top-left corner) of world points
+        ``(N, 3)`` in the image of the last :meth:`frame`; NaN for points behind the camera."""
+        if getattr(self, "_view", None) is None:
+            raise ParameterError("draw a frame first: the camera is placed for each frame")
+        lookat, dist, az, el = self._view
+        az, el = math.radians(az), math.radians(el)
+        fwd = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        rel = np.asarray(points, dtype=np.float64).reshape(-1, 3) - (lookat - dist * fwd)
+        depth = rel @ fwd
+        tv = math.tan(math.radians(self._scene.fovy) / 2)
+        w, h = self.config.width, self.config.height
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (0.5 + 0.5 * (rel @ right) / (depth * tv * w / h)) * w
+            y = (0.5 - 0.5 * (rel @ up) / (depth * tv)) * h
+        out = np.stack([x, y], axis=-1)
+        out[depth <= 0] = np.nan
+        return out
 
     # ------------------------------------------------------------------ one frame
     def frame(self, t: float) -> np.ndarray:
         """The image at scene time ``t`` (s): ``(H, W, 3)`` uint8, top row first (a view of an internal
         buffer: copy it to keep it)."""
-        mj = self._mj
+        scene = self._scene
         w = self.world
         cur = [_interp(c, t) for c in w.characters]
         self._camera(cur, t)
-        mj.mjv_updateScene(self.model, self.data, self._opt, self._pert, self._cam, mj.mjtCatBit.mjCAT_ALL,
-                           self._scn)
-        caps = mj.mjtGeom.mjGEOM_CAPSULE
         thin = self.config.body == "bones"
         show = w.show
         contact_rgba = style.rgba(style.CONTACT_COLOR)
@@ -354,25 +279,25 @@ class Renderer:
             rgba = self._rgba[i]
             for par, child in ch.bones():
                 r = 0.3 * ch.radii[child] if thin else ch.radii[child]
-                self._connector(caps, max(r, 0.008), p[par], p[child], rgba)
+                scene.connector("capsule", max(r, 0.008), p[par], p[child], rgba)
             if thin:
                 for k in range(len(p)):
-                    self._sphere(p[k], 0.018, rgba)
-            self._disc((p[0, 0], p[0, 1], w.floor + 0.002), 0.3, shadow_rgba)
+                    scene.sphere(p[k], 0.018, rgba)
+            scene.disc((p[0, 0], p[0, 1], w.floor + 0.002), 0.3, shadow_rgba)
             top = p[np.argmax(p[:, 2])]
             if self.config.hud:
-                self._sphere((top[0], top[1], top[2] + 0.22), 0.001, np.array([0, 0, 0, 0], np.float32), ch.name)
+                scene.sphere((top[0], top[1], top[2] + 0.22), 0.001, np.array([0, 0, 0, 0], np.float32), ch.name)
             if "contacts" in show and ch.contacts is not None and ch.feet:
                 f = ch.frame_at(t)
                 for k, side in enumerate(("left", "right")):
                     idx = ch.feet.get(side)
                     if idx is not None and len(idx) and ch.contacts[f, k]:
                         c = p[idx].mean(axis=0)
-                        self._disc((c[0], c[1], w.floor + 0.004), 0.1, contact_rgba)
+                        scene.disc((c[0], c[1], w.floor + 0.004), 0.1, contact_rgba)
             if "trajectories" in show:
                 tr = self._trails[i]
                 for a, b in itertools.pairwise(tr):
-                    self._connector(mj.mjtGeom.mjGEOM_LINE, 2.0, a, b, rgba)
+                    scene.connector("line", 2.0, a, b, rgba)
         if "trajectories" in show:
             for tr in w.trajectories:
                 pts = np.asarray(tr.points, dtype=np.float64)
@@ -380,7 +305,7 @@ class Renderer:
                 pts = pts[::step]
                 col = style.rgba(tr.color)
                 for a, b in itertools.pairwise(pts):
-                    self._connector(mj.mjtGeom.mjGEOM_LINE, 2.5, a, b, col)
+                    scene.connector("line", 2.5, a, b, col)
         for im in w.impacts:
             dt = t - im.time
             if -0.02 <= dt <= _HOLD_IMPACT_S:
@@ -391,16 +316,14 @@ class Renderer:
                 mag = float(np.linalg.norm(j))
                 length = min(max(0.25, mag * 0.02), 1.2)
                 d = j / mag if mag > 1e-9 else np.array([1.0, 0, 0])
-                self._connector(mj.mjtGeom.mjGEOM_ARROW, 0.03, p - d * length, p, col)
-                self._sphere(p, 0.045, col)
-        mj.mjr_render(self._rect, self._scn, self._con)
+                scene.connector("arrow", 0.03, p - d * length, p, col)
+                scene.sphere(p, 0.045, col)
+        overlay = None
         if self.config.hud:
             nf = w.num_frames
             f = min(math.floor(t * w.fps + 1e-6), nf - 1)
-            mj.mjr_overlay(mj.mjtFont.mjFONT_NORMAL, mj.mjtGridPos.mjGRID_TOPLEFT, self._rect,
-                           f"frame {f} / {nf - 1}", f"{t:.2f} s", self._con)
-        mj.mjr_readPixels(self._rgb, None, self._rect, self._con)
-        img = self._rgb[::-1]
+            overlay = (f"frame {f} / {nf - 1}", f"{t:.2f} s")
+        img = scene.finish(overlay)
         if self.config.hud and self._bars:
             img = self._draw_bars(np.ascontiguousarray(img), t)
         return img
