@@ -133,7 +133,7 @@ def test_convert_output_opens_in_third_party_reader(cmu_like, tmp_path):
 
 @pytest.mark.parametrize("args,fragment", [
     (["--order", "abc"], "order"),
-    (["--out-unit", "furlong"], "--scale"),
+    (["--out-unit", "furlong"], "--out-unit"),
     (["--fps", "-5"], "fps"),
 ])
 def test_convert_bad_options(cmu_like, tmp_path, capsys, args, fragment):
@@ -175,7 +175,6 @@ def test_subprocess_has_no_traceback(tmp_path):
 # --------------------------------------------------------------------------- library
 
 def test_library_commands(tmp_path, capsys):
-    pytest.importorskip("kinodyn.data.library", reason="kinodyn.data.library is not part of this build yet")
     assert main(["library", "list"]) == 0
     out = capsys.readouterr().out
     names = [ln.split()[0] for ln in out.strip().split("\n")]

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import argparse
+import json
+
 import numpy as np
 import pytest
 
 from conftest import mocap_files
+from kinodyn.cli import main
 from kinodyn.data import library
-from kinodyn.io import drop_added_tpose, has_added_tpose, load
+from kinodyn.io import drop_added_tpose, has_added_tpose, load, save
 from kinodyn.math import quat
 from kinodyn.motion import Motion
 
@@ -77,3 +81,62 @@ def test_a_held_tpose_is_captured_motion_not_an_added_frame():
 def test_too_short_motions_have_no_added_tpose():
     m = _tpose_then(library.load("walk"))
     assert not has_added_tpose(m[:1]) and not has_added_tpose(m[:0])
+
+
+# --------------------------------------------------------------------------- the commands
+
+
+@pytest.fixture
+def tpose_bvh(tmp_path):
+    """A BVH file whose frame 0 is an added T-pose (the built-in walk after one)."""
+    path = tmp_path / "tpose_walk.bvh"
+    save(path, _tpose_then(library.load("walk")))
+    return path
+
+
+def test_info_reports_the_added_tpose(tpose_bvh, capsys):
+    assert main(["info", str(tpose_bvh)]) == 0
+    out = capsys.readouterr().out
+    assert "T-pose" in out and "added by the file's converter" in out
+    assert main(["info", str(tpose_bvh), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["added_tpose"] is True
+
+
+def test_info_is_silent_without_an_added_tpose(tmp_path, capsys):
+    path = tmp_path / "walk.bvh"
+    save(path, library.load("walk"))
+    assert main(["info", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["added_tpose"] is False
+    assert main(["info", str(path)]) == 0
+    assert "T-pose" not in capsys.readouterr().out
+
+
+def test_convert_keeps_every_frame_unless_asked(tpose_bvh, tmp_path, capsys):
+    n = load(tpose_bvh).num_frames
+    assert main(["convert", str(tpose_bvh), str(tmp_path / "all.npz")]) == 0
+    assert load(tmp_path / "all.npz").num_frames == n
+    assert main(["convert", str(tpose_bvh), str(tmp_path / "cut.npz"), "--drop-tpose"]) == 0
+    assert load(tmp_path / "cut.npz").num_frames == n - 1
+
+
+def test_view_and_render_inputs_skip_the_tpose_with_a_note(tpose_bvh, capsys):
+    """``kinodyn view`` and ``kinodyn render`` read their inputs through one loader."""
+    from kinodyn.commands.view import add_input_arguments, load_inputs
+
+    n = load(tpose_bvh).num_frames
+    p = argparse.ArgumentParser()
+    add_input_arguments(p)
+    (m,) = load_inputs(p.parse_args([str(tpose_bvh)]))
+    assert m.num_frames == n - 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(tpose_bvh) in err and "T-pose" in err and "--keep-tpose" in err
+    (m,) = load_inputs(p.parse_args([str(tpose_bvh), "--keep-tpose"]))
+    assert m.num_frames == n and capsys.readouterr().err == ""
+    (m,) = load_inputs(p.parse_args([str(tpose_bvh), "--drop-first", "2"]))
+    assert m.num_frames == n - 2  # an explicit --drop-first replaces the detection
+
+
+def test_view_writes_the_page_without_the_tpose(tpose_bvh, tmp_path, capsys):
+    out = tmp_path / "v.html"
+    assert main(["view", str(tpose_bvh), "-o", str(out)]) == 0
+    assert f"{load(tpose_bvh).num_frames - 1} frames" in capsys.readouterr().out

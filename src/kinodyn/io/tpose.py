@@ -21,12 +21,23 @@ the built-in clips) have span at most 0.71 or a jump below 0.14 m.
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from kinodyn.motion import Motion
 
-__all__ = ["has_added_tpose", "drop_added_tpose", "TPOSE_MIN_SPAN", "TPOSE_MAX_SPAN", "TPOSE_MAX_THICKNESS",
-           "TPOSE_MIN_JUMP", "TPOSE_JUMP_RATIO"]
+__all__ = [
+    "ADDED_TPOSE_NOTE",
+    "TPOSE_JUMP_RATIO",
+    "TPOSE_MAX_SPAN",
+    "TPOSE_MAX_THICKNESS",
+    "TPOSE_MIN_JUMP",
+    "TPOSE_MIN_SPAN",
+    "drop_added_tpose",
+    "has_added_tpose",
+    "skip_added_tpose",
+]
 
 #: lateral span of a T-pose over its height (the arm span is about the body height)
 TPOSE_MIN_SPAN = 0.85
@@ -37,6 +48,9 @@ TPOSE_MAX_THICKNESS = 0.3
 TPOSE_MIN_JUMP = 0.1
 #: ... and over the median frame-to-frame change of the next frames
 TPOSE_JUMP_RATIO = 5.0
+#: what ``kinodyn info`` says about such a file
+ADDED_TPOSE_NOTE = ("frame 0 is a T-pose added by the file's converter, not motion capture (view and render "
+                    "skip it; convert --drop-tpose removes it)")
 _NEXT_FRAMES = 30  # frames after frame 1 whose changes give the typical frame-to-frame change
 
 
@@ -77,3 +91,13 @@ def drop_added_tpose(motion: Motion) -> tuple[Motion, bool]:
     if has_added_tpose(motion):
         return motion[1:], True
     return motion, False
+
+
+def skip_added_tpose(motion: Motion, label, out=None) -> Motion:
+    """:func:`drop_added_tpose` for the commands that show motions: prints one note naming ``label``
+    (on ``out``, default stderr) when the frame is skipped."""
+    m, dropped = drop_added_tpose(motion)
+    if dropped:
+        print(f"kinodyn: note: {label}: skipped frame 0, a T-pose added by the converter "
+              "(--keep-tpose shows it)", file=out if out is not None else sys.stderr)
+    return m
