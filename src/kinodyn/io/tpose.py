@@ -25,6 +25,7 @@ import sys
 
 import numpy as np
 
+from kinodyn._arrays import median
 from kinodyn.motion import Motion
 
 __all__ = [
@@ -82,7 +83,7 @@ def has_added_tpose(motion: Motion) -> bool:
     rel = pos - pos[:, :1]
     steps = np.linalg.norm(np.diff(rel, axis=0), axis=-1).max(axis=-1)  # (n-1,) largest joint change
     height = float(np.ptp(pos[0, :, 2]))
-    typical = float(np.median(steps[1:])) if len(steps) > 1 else 0.0
+    typical = float(median(steps[1:])) if len(steps) > 1 else 0.0
     return bool(steps[0] > TPOSE_MIN_JUMP * height and steps[0] > TPOSE_JUMP_RATIO * typical)
 
 
