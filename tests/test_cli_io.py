@@ -213,8 +213,14 @@ def test_bench_io_quick(tmp_path, capsys):
     out = tmp_path / "bench.json"
     assert main(["bench", "io", "--quick", "--json", str(out)]) == 0
     res = json.loads(out.read_text())
-    for key in ("bvh_frames_per_s", "fk_joint_frames_per_s", "amc_parse_s"):
+    for key in ("bvh_frames_per_s", "fk_joint_frames_per_s", "amc_parse_s", "cold_info_s", "cold_info_mb",
+                "library_generate_s", "bvh_huge_header_reject_s"):
         assert res["metrics"][key] > 0, key
+    # a whole process of python + numpy at least, and no 300 MB of the benchmark's own process counted
+    assert 0.02 < res["metrics"]["cold_info_s"] < 60 and 15 < res["metrics"]["cold_info_mb"] < 150
+    if "cold_bvh_pypi_s" in res["metrics"]:
+        ratio = res["metrics"]["cold_info_s"] / res["metrics"]["cold_bvh_pypi_s"]
+        assert res["metrics"]["cold_ratio_vs_bvh_pypi"] == pytest.approx(ratio)
     assert res["units"]["amc_parse_s"] == "s"
     assert "10000 frames x 31 joints" in res["notes"]["bvh_file"]
     assert "bvh_frames_per_s" in capsys.readouterr().out
