@@ -346,17 +346,10 @@ def run(quick: bool = False, progress=None) -> BenchResult:
         except ImportError:
             res.notes["bvh_pypi"] = "the `bvh` package is not installed; no same-run baseline"
         else:
-            def pkg_parse():
-                doc = bvh_pkg.Bvh(bvh_path.read_text())
-                return doc.nframes
-
-            t_pkg, _ = _median_time(pkg_parse, 1 if quick else 3)
+            t_pkg, _ = _median_time(lambda: bvh_pkg.Bvh(bvh_path.read_text()).nframes, 1 if quick else 3)
             base_fps = f / t_pkg
         step()
-        cold = cold_start(tmp, repeats=3 if quick else 9)
-        step()
-        units = _unit_speeds(tmp)
-        step()
+        _add_process_figures(res, tmp, quick, step)
     if bar is not None:
         bar.close()
 
@@ -376,9 +369,6 @@ def run(quick: bool = False, progress=None) -> BenchResult:
         ref = _REF_FRAMES / secs
         res.baseline[f"{name}_parse_fk_frames_per_s_ref"] = ref
         res.add(f"speedup_parse_fk_vs_{name}_ref", parse_fk_fps / ref, "x")
-    _add_cold(res, cold)
-    for k, v in units.items():
-        res.add(k, v, "s")
     res.baseline["goal_speedup_parse_vs_bvh_pypi"] = _GOAL_PARSE_SPEEDUP
     res.baseline["goal_speedup_parse_fk_vs_fairmotion_bvhio"] = _GOAL_PARSE_FK_SPEEDUP
     res.notes.update({
@@ -396,7 +386,13 @@ def run(quick: bool = False, progress=None) -> BenchResult:
     return res
 
 
-def _add_cold(res: BenchResult, cold: dict) -> None:
+def _add_process_figures(res: BenchResult, tmp: Path, quick: bool, step) -> None:
+    """The cold start (:func:`cold_start`) and the two figures timed in fresh processes or on big input."""
+    cold = cold_start(tmp, repeats=3 if quick else 9)
+    step()
+    for k, v in _unit_speeds(tmp).items():
+        res.add(k, v, "s")
+    step()
     info = cold["info"]
     res.add("cold_info_s", info["s"], "s")
     res.add("cold_info_mb", info["mb"], "MB")
