@@ -216,3 +216,10 @@ def test_help_has_a_description_and_argument_help(command, args, capsys):
         if not text and following.startswith("      "):
             text = [following.strip()]
         assert text and len(" ".join(text).split()) >= 2, (a, row)
+
+
+def test_view_drop_first_negative(walk_bvh, tmp_path, capsys):
+    out = tmp_path / "v.html"
+    assert main(["view", str(walk_bvh), "-o", str(out), "--drop-first", "-1"]) == 2
+    _one_error_line(capsys, "--drop-first -1", str(walk_bvh))
+    assert not out.exists()

@@ -54,6 +54,8 @@ def load_inputs(args) -> list:
         else:
             m = _library_clip(item)
         if args.drop_first:
+            if args.drop_first < 0:
+                raise ParameterError(f"--drop-first {args.drop_first}: a number of frames >= 0 to drop from {item}")
             if args.drop_first >= m.num_frames:
                 raise ParameterError(f"--drop-first {args.drop_first} leaves no frames of {item} "
                                      f"({m.num_frames} frames)")
