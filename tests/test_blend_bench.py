@@ -26,4 +26,10 @@ def test_crowd_benchmark_runs_small():
     from kinodyn.bench.blend import crowd_benchmark
 
     r = crowd_benchmark(4, 0.5)
-    assert r["updates"] > 0 and r["us_per_char_frame"] > 0 and r["mean_actions"] >= 2
+    assert r["frames"] == 30  # 0.5 s at 60 fps
+    assert r["us_per_char_frame"] == pytest.approx(r["frame_ms"] * 1e3 / 4)
+    assert r["updates_per_char_s"] == pytest.approx(r["updates"] / (4 * 0.5))
+    # walk, run and a fast walk at one priority; the run is restarted now and then (2 or 3 contribute)
+    assert 2.0 <= r["mean_actions"] <= 3.0
+    # steps are entered at the gait's pace: a few support phases a second per character, not per frame
+    assert 2.0 <= r["updates_per_char_s"] <= 12.0, r

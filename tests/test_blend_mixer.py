@@ -169,9 +169,11 @@ def test_activation_follows_figure_2():
 def test_priority_weights():
     # same priority: shared by activation; the neutral pose gets what is left
     w, wn = priority_weights([[0.5, 0.25]], [[1, 1]])
-    np.testing.assert_allclose(w, [[0.5, 0.25]]) and pytest.approx(wn[0]) == 0.25
+    np.testing.assert_allclose(w, [[0.5, 0.25]], atol=_TOL)
+    np.testing.assert_allclose(wn, [0.25], atol=_TOL)
     w, wn = priority_weights([[1.0, 1.0]], [[1, 1]])
-    np.testing.assert_allclose(w, [[0.5, 0.5]], atol=_TOL) and np.testing.assert_allclose(wn, [0.0], atol=_TOL)
+    np.testing.assert_allclose(w, [[0.5, 0.5]], atol=_TOL)
+    np.testing.assert_allclose(wn, [0.0], atol=_TOL)
     # a higher priority takes its activation first
     w, wn = priority_weights([[0.75, 1.0, 1.0]], [[2, 1, 0]])
     np.testing.assert_allclose(w, [[0.75, 0.25, 0.0]], atol=_TOL)

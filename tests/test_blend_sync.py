@@ -117,7 +117,57 @@ def test_random_actions_always_synchronized(data):
     a solution: every synchronized step is free of ERR, the plan matches the tracks, elements advance by
     0 or 1 per step, and at every resolved conflict the highest-priority candidate single support
     allowed by the previous step is the constraint kept."""
+    import kinodyn.blend.sync as sync_module
+
     sync, reqs, stops = _script_sync(data)
+    calls = []
+
+    def recording(old, nxt, priorities):
+        res = real_resolve(old, nxt, priorities)
+        calls.append((list(old), list(nxt), list(priorities), res))
+        return res
+
+    real_resolve, sync_module.resolve = sync_module.resolve, recording
+    try:
+        _drive(sync, reqs, stops)
+    finally:
+        sync_module.resolve = real_resolve
+    for step, res, keys in sync.resolutions:
+        assert res.phase != ERR and len(res.held) < len(keys)
+    for old, nxt, prio, res in calls:
+        _assert_kept_constraint(old, nxt, prio, res)
+
+
+def _or(codes) -> int:
+    out = 0
+    for c in codes:
+        out |= c
+    return out
+
+
+def _assert_kept_constraint(old, nxt, prio, res):
+    """The single support kept at a conflict is the highest-priority candidate allowed by the previous
+    step (ties in input order); the other one is kept only when keeping that one cannot work."""
+    if res.rule == "free":
+        assert _or(nxt) != ERR and res.held == ()
+        return
+    prev = _or(old)
+    order = sorted(range(len(nxt)), key=lambda i: -prio[i])
+    kept = next(nxt[i] for i in order if nxt[i] in (RS, LS) and (nxt[i] | prev) != ERR)
+    if res.rule == "priority":
+        assert res.constraint == kept, (old, nxt, prio, res)
+    if res.rule == "other":
+        assert res.constraint == (RS if kept == LS else LS), (old, nxt, prio, res)
+        opposite = RS if kept == LS else LS
+        held = [i for i in range(len(nxt)) if nxt[i] == opposite]
+        tried = _or(old[i] if i in held else nxt[i] for i in range(len(nxt)))
+        assert tried == ERR or len(held) == len(nxt), (old, nxt, prio, res)  # keeping `kept` failed
+    if res.constraint is not None:
+        advancing = [nxt[i] for i in range(len(nxt)) if i not in res.held]
+        assert (RS if res.constraint == LS else LS) not in advancing, (old, nxt, prio, res)
+
+
+def _drive(sync, reqs, stops):
     started = set()
     for step in range(80):
         for r in reqs:
@@ -140,8 +190,6 @@ def test_random_actions_always_synchronized(data):
         for t in sync.tracks:
             d = np.diff(t.elems)
             assert np.all((d == 0) | (d == 1))
-    for step, res, keys in sync.resolutions:
-        assert res.phase != ERR and len(res.held) < len(keys)
 
 
 def test_new_action_waits_for_a_compatible_step():

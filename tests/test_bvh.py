@@ -19,6 +19,7 @@ from kinodyn.io.bvh import (
     to_bvh_text,
     write_bvh,
 )
+from kinodyn.io.tpose import has_added_tpose
 from kinodyn.math import quat
 from kinodyn.motion import Motion
 from kinodyn.skeleton import Skeleton
@@ -315,8 +316,11 @@ def test_every_shared_bvh_loads_and_round_trips(path, tmp_path):
     np.testing.assert_allclose(m.skeleton.offsets, _yup_to_kinodyn(d.offsets) * s, atol=1e-12)
     gp = m.global_positions()
     assert np.isfinite(gp).all()
-    assert 1.1 < np.ptp(gp[0], axis=0).max() < 2.0, path.name  # a person-sized body, in metres
-    assert -0.1 < gp[:, :, 2].min() < 0.2, path.name  # Z up: the lowest joint reaches the floor
+    assert 1.1 < np.ptp(gp, axis=1).max() < 2.0, path.name  # a person-sized body, in metres
+    # Z up: the lowest joint reaches the floor, standing or lying, in the captured frames (an added
+    # T-pose stands at the first frame's root height, legs through the floor when the take starts lying)
+    captured = gp[1:] if has_added_tpose(m) else gp
+    assert -0.1 < captured[:, :, 2].min() < 0.2, path.name
     out = tmp_path / path.name
     write_bvh(out, m)
     r = read_bvh(out)
@@ -412,16 +416,15 @@ def test_malformed_files_name_file_and_line(name, tmp_path):
     assert str(e).startswith(f"{path}:{line}: ")
 
 
-def test_huge_header_without_motion_fails_fast(tmp_path):
-    """A 20 MB hierarchy without MOTION is rejected without tokenizing it all."""
-    import time
-
+def test_huge_header_without_motion_is_rejected(tmp_path):
+    """A 20 MB hierarchy without MOTION is rejected by its size, naming the limit (how fast is
+    `kinodyn bench io`'s bvh_huge_header_reject_s)."""
     path = tmp_path / "huge.bvh"
-    path.write_bytes(b"HIERARCHY\n" + b"JOINT x { OFFSET 0 0 0 }\n" * 800_000)
-    t0 = time.perf_counter()
-    with pytest.raises(BVHParseError, match="no MOTION section in the first"):
+    data = b"HIERARCHY\n" + b"JOINT x { OFFSET 0 0 0 }\n" * 800_000
+    path.write_bytes(data)
+    with pytest.raises(BVHParseError, match="no MOTION section in the first 16 MiB") as ei:
         read_bvh(path)
-    assert time.perf_counter() - t0 < 10.0
+    assert ei.value.line == data[: 16 << 20].count(b"\n") + 1  # where the reader stopped looking
 
 
 def test_too_many_joints(tmp_path):

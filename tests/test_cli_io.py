@@ -133,7 +133,7 @@ def test_convert_output_opens_in_third_party_reader(cmu_like, tmp_path):
 
 @pytest.mark.parametrize("args,fragment", [
     (["--order", "abc"], "order"),
-    (["--out-unit", "furlong"], "--scale"),
+    (["--out-unit", "furlong"], "--out-unit"),
     (["--fps", "-5"], "fps"),
 ])
 def test_convert_bad_options(cmu_like, tmp_path, capsys, args, fragment):
@@ -175,7 +175,6 @@ def test_subprocess_has_no_traceback(tmp_path):
 # --------------------------------------------------------------------------- library
 
 def test_library_commands(tmp_path, capsys):
-    pytest.importorskip("kinodyn.data.library", reason="kinodyn.data.library is not part of this build yet")
     assert main(["library", "list"]) == 0
     out = capsys.readouterr().out
     names = [ln.split()[0] for ln in out.strip().split("\n")]
@@ -214,8 +213,14 @@ def test_bench_io_quick(tmp_path, capsys):
     out = tmp_path / "bench.json"
     assert main(["bench", "io", "--quick", "--json", str(out)]) == 0
     res = json.loads(out.read_text())
-    for key in ("bvh_frames_per_s", "fk_joint_frames_per_s", "amc_parse_s"):
+    for key in ("bvh_frames_per_s", "fk_joint_frames_per_s", "amc_parse_s", "cold_info_s", "cold_info_mb",
+                "library_generate_s", "bvh_huge_header_reject_s"):
         assert res["metrics"][key] > 0, key
+    # a whole process of python + numpy at least, and no 300 MB of the benchmark's own process counted
+    assert 0.02 < res["metrics"]["cold_info_s"] < 60 and 15 < res["metrics"]["cold_info_mb"] < 150
+    if "cold_bvh_pypi_s" in res["metrics"]:
+        ratio = res["metrics"]["cold_info_s"] / res["metrics"]["cold_bvh_pypi_s"]
+        assert res["metrics"]["cold_ratio_vs_bvh_pypi"] == pytest.approx(ratio)
     assert res["units"]["amc_parse_s"] == "s"
     assert "10000 frames x 31 joints" in res["notes"]["bvh_file"]
     assert "bvh_frames_per_s" in capsys.readouterr().out

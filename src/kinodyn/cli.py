@@ -64,7 +64,10 @@ def _parse_scale(s: str):
 
 
 def _summary(motion, drop_tpose: bool = False) -> dict:
+    """What ``kinodyn info`` reports. Contacts are found on the captured frames (an added T-pose frame,
+    see :mod:`kinodyn.io.tpose`, is left out) and given in the file's time."""
     from kinodyn import contacts
+    from kinodyn.io import drop_added_tpose
 
     sk = motion.skeleton
     out = {
@@ -75,13 +78,20 @@ def _summary(motion, drop_tpose: bool = False) -> dict:
         "frames": motion.num_frames,
         "fps": round(motion.fps, 6),
         "duration_s": round(motion.duration, 4),
-        "height_m": round(float(np.ptp(motion.global_positions()[0, :, 2])), 4),
+        "height_m": None,
+        "added_tpose": False,
     }
+    if motion.num_frames == 0:
+        out["contacts"] = "unavailable: the motion has no frames"
+        return out
+    out["height_m"] = round(float(np.ptp(motion[:1].global_positions()[0, :, 2])), 4)
+    captured, out["added_tpose"] = drop_added_tpose(motion)
+    shift = 1 if out["added_tpose"] else 0
     try:
-        c = contacts.detect(motion)
-        s = contacts.sliding(motion, c)
-        out["contacts"] = {side: [[round(a / motion.fps, 3), round(b / motion.fps, 3)] for a, b in iv]
-                           for side, iv in c.intervals().items()}
+        c = contacts.detect(captured)
+        s = contacts.sliding(captured, c)
+        out["contacts"] = {side: [[round((a + shift) / motion.fps, 3), round((b + shift) / motion.fps, 3)]
+                                  for a, b in iv] for side, iv in c.intervals().items()}
         out["sliding_cm_s"] = round(s.cm_per_s, 3)
     except KinodynError as e:
         out["contacts"] = f"unavailable: {e}"
@@ -89,15 +99,21 @@ def _summary(motion, drop_tpose: bool = False) -> dict:
 
 
 def _cmd_info(args) -> int:
+    from kinodyn.io.tpose import ADDED_TPOSE_NOTE
+
     motion = _load_motion(args.file, args)
+    if motion.num_frames == 0:
+        raise KinodynError(f"{args.file}: the motion has no frames")
     info = _summary(motion)
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
+    height = "" if info["height_m"] is None else f", height {info['height_m']:.2f} m"
     print(f"{args.file}")
-    print(f"  skeleton   {info['joints']} joints ({info['end_sites']} end sites), root {info['root']!r}, "
-          f"height {info['height_m']:.2f} m")
+    print(f"  skeleton   {info['joints']} joints ({info['end_sites']} end sites), root {info['root']!r}{height}")
     print(f"  motion     {info['frames']} frames at {info['fps']:g} fps = {info['duration_s']:.2f} s")
+    if info["added_tpose"]:
+        print(f"  T-pose     {ADDED_TPOSE_NOTE}")
     if isinstance(info["contacts"], dict):
         for side, iv in info["contacts"].items():
             spans = ", ".join(f"{a:.2f}-{b:.2f}" for a, b in iv[:8]) + (" ..." if len(iv) > 8 else "")
@@ -117,18 +133,34 @@ def _cmd_info(args) -> int:
 
 
 def _cmd_convert(args) -> int:
-    from kinodyn.io import save
+    from kinodyn.io import drop_added_tpose, save
 
-    motion = _load_motion(args.input, args)
-    if args.drop_first:
-        motion = motion[args.drop_first:]
-    if args.fps:
-        motion = motion.resample(args.fps)
-    if args.mirror:
-        motion = motion.mirrored()
+    if args.drop_first < 0:
+        raise KinodynError(f"--drop-first must be a number of frames >= 0, got {args.drop_first}")
+    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
+        raise KinodynError(f"--fps must be a positive frame rate, got {args.fps:g}")
     kw = {}
     if args.output.lower().endswith(".bvh"):
-        kw = {"scale": _parse_scale(args.out_unit), "up": args.out_up, "order": args.order}
+        try:
+            kw = {"scale": _parse_scale(args.out_unit), "up": args.out_up, "order": args.order}
+        except KinodynError:
+            raise KinodynError(f"--out-unit must be a unit (m, cm, mm, inch, cmu) or metres per unit, "
+                               f"got {args.out_unit!r}") from None
+    motion = _load_motion(args.input, args)
+    if args.drop_tpose:
+        motion, _ = drop_added_tpose(motion)
+    if args.drop_first:
+        if args.drop_first >= motion.num_frames:
+            raise KinodynError(f"--drop-first {args.drop_first} leaves no frames of {args.input} "
+                               f"({motion.num_frames} frames)")
+        motion = motion[args.drop_first:]
+    if args.fps:
+        try:
+            motion = motion.resample(args.fps)
+        except KinodynError as e:
+            raise KinodynError(f"--fps {args.fps:g}: {e}") from None
+    if args.mirror:
+        motion = motion.mirrored()
     save(args.output, motion, **kw)
     print(f"wrote {args.output}: {motion.num_frames} frames at {motion.fps:g} fps, {motion.num_joints} joints")
     return 0
@@ -191,27 +223,39 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     def motion_opts(q):
-        q.add_argument("--scale", help="input unit (m, cm, mm, inch, cmu) or metres per unit; default: detect")
-        q.add_argument("--up", choices=["y", "z"], help="input up axis (BVH default y)")
-        q.add_argument("--asf", help="ASF skeleton for an AMC file (default: the .asf beside it)")
+        q.add_argument("--scale", help="input length unit (m, cm, mm, inch, cmu) or metres per unit; "
+                       "default: detected from the body's size")
+        q.add_argument("--up", choices=["y", "z"], help="input up axis (default y for BVH and AMC)")
+        q.add_argument("--asf", metavar="FILE.asf",
+                       help="ASF skeleton of an AMC file (default: the matching .asf beside it)")
 
-    q = sub.add_parser("info", help="skeleton, frames, fps, contacts and sliding of a motion file")
-    q.add_argument("file")
-    q.add_argument("--json", action="store_true", help="print JSON")
-    q.add_argument("-v", "--verbose", action="store_true", help="list the joints")
+    q = sub.add_parser("info", help="skeleton, frames, fps, contacts and sliding of a motion file",
+                       description="Print what a motion file holds: its skeleton (joints, end sites, height), "
+                       "frames, frame rate and duration, whether frame 0 is a T-pose added by the converter "
+                       "(cgspeed CMU files), the foot contacts and how much the feet slide in contact.")
+    q.add_argument("file", help="motion file: .bvh, .amc (with its .asf) or .npz written by kinodyn")
+    q.add_argument("--json", action="store_true", help="print the summary as JSON")
+    q.add_argument("-v", "--verbose", action="store_true", help="also list the joints and their parents")
     motion_opts(q)
     q.set_defaults(func=_cmd_info)
 
-    q = sub.add_parser("convert", help="convert BVH/AMC/NPZ to BVH or NPZ (units, fps, mirror)")
-    q.add_argument("input")
-    q.add_argument("output")
+    q = sub.add_parser("convert", help="convert BVH/AMC/NPZ to BVH or NPZ (units, fps, mirror)",
+                       description="Read a motion file and write it as BVH or kinodyn .npz (chosen by the "
+                       "output's ending), optionally dropping frames, resampling, mirroring, and choosing the "
+                       "BVH unit, up axis and rotation order. Every frame is kept unless asked; the output "
+                       "is written atomically.")
+    q.add_argument("input", help="motion file to read: .bvh, .amc or .npz")
+    q.add_argument("output", help="file to write: .bvh or .npz")
     motion_opts(q)
-    q.add_argument("--fps", type=float, help="resample to this frame rate")
+    q.add_argument("--fps", type=float, help="resample to this frame rate (frames per second, > 0)")
     q.add_argument("--mirror", action="store_true", help="swap left and right")
+    q.add_argument("--drop-tpose", action="store_true",
+                   help="drop frame 0 when it is a T-pose added by the converter (cgspeed CMU files)")
     q.add_argument("--drop-first", type=int, default=0, metavar="N",
-                   help="drop the first N frames (e.g. 1 for the T-pose frame of CMU BVH conversions)")
-    q.add_argument("--out-unit", default="cm", help="BVH output unit (m, cm, mm, inch, cmu or metres per unit)")
-    q.add_argument("--out-up", default="y", choices=["y", "z"], help="BVH output up axis")
+                   help="drop the first N frames (N >= 0, fewer than the frames; applied after --drop-tpose)")
+    q.add_argument("--out-unit", default="cm",
+                   help="BVH output length unit (m, cm, mm, inch, cmu) or metres per unit (default cm)")
+    q.add_argument("--out-up", default="y", choices=["y", "z"], help="BVH output up axis (default y)")
     q.add_argument("--order", default="zyx", help="BVH output rotation channel order (default zyx)")
     q.set_defaults(func=_cmd_convert)
 
@@ -259,10 +303,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except (KinodynError, FileNotFoundError, IsADirectoryError, PermissionError) as e:
-        msg = str(e) if not isinstance(e, OSError) or not e.filename else f"{e.filename}: {e.strerror}"
-        print(f"kinodyn: error: {msg}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         print("kinodyn: interrupted", file=sys.stderr)
         return 130
@@ -271,6 +311,13 @@ def main(argv: list[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except (KinodynError, OSError) as e:  # bad input or an unusable path: one line, exit 2
+        msg = str(e) if not isinstance(e, OSError) or not e.filename else f"{e.filename}: {e.strerror}"
+        from kinodyn.io.amc import PASS_ASF
+
+        msg = msg.replace(PASS_ASF, "give it with --asf FILE.asf")
+        print(f"kinodyn: error: {' '.join(msg.split())}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinodyn._arrays import percentile
 from kinodyn.errors import ParameterError, UnknownNameError
 from kinodyn.kinematics import forward_kinematics, linear_velocity
 from kinodyn.math import quat
@@ -220,14 +221,14 @@ def _estimate_floor(pts, vel, config: ContactConfig) -> tuple[float, np.ndarray]
     slope = np.zeros(2)
     if len(planted) >= 10 and np.ptp(planted[:, :2], axis=0).max() >= _PLANE_MIN_SPREAD:
         # Keep the planted points near the bottom (stance), fit z = a x + b y + c by least squares.
-        base = np.percentile(planted[:, 2], 2.0)
+        base = percentile(planted[:, 2], 2.0)
         near = planted[planted[:, 2] < base + config.height]
         if len(near) >= 10 and np.ptp(near[:, :2], axis=0).max() >= _PLANE_MIN_SPREAD:
             a = np.c_[near[:, :2], np.ones(len(near))]
             coef = np.linalg.lstsq(a, near[:, 2], rcond=None)[0]
             if np.all(np.abs(coef[:2]) <= _PLANE_MAX_SLOPE):
                 slope = coef[:2]
-    floor = float(np.percentile(low[:, 2] - low[:, :2] @ slope, 2.0))
+    floor = float(percentile(low[:, 2] - low[:, :2] @ slope, 2.0))
     return floor, slope
 
 
@@ -271,4 +272,4 @@ def sliding(motion: Motion, contacts: FootContacts | None = None, config: Contac
     allsp = np.concatenate(speeds)
     if len(allsp) == 0:
         return SlidingReport(0.0, per, 0.0, 0)
-    return SlidingReport(float(allsp.mean()), per, float(np.percentile(allsp, 95)), int(len(allsp)))
+    return SlidingReport(float(allsp.mean()), per, float(percentile(allsp, 95)), int(len(allsp)))

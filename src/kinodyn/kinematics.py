@@ -10,23 +10,26 @@ Shapes: ``F`` frames, ``J`` joints, ``E`` end sites.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from kinodyn.math import quat
-from kinodyn.math.kernels import qmul, qrot_add
 
 __all__ = [
+    "SMALL_JOINT_FRAMES",
     "angular_velocity",
     "end_site_positions",
     "fk_arrays",
+    "fk_link",
     "forward_kinematics",
     "joint_velocities",
     "linear_velocity",
 ]
 
+#: at most this many frames x joints go through the numpy path (no numba import, which costs 0.25-0.5 s
+#: and more than numpy takes on such sizes); larger motions use the compiled kernel, parallel over frames
+SMALL_JOINT_FRAMES = 200_000
 
-@numba.njit(cache=True, parallel=True)
+
 def _fk_kernel(root_pos, local_rot, trans, parents, gr, gp):  # pragma: no cover - compiled
     """trans is (1, J, 3) (rest offsets for every frame) or (F, J, 3) (animated translations)."""
     n_frames, n_joints = local_rot.shape[0], local_rot.shape[1]
@@ -41,20 +44,56 @@ def _fk_kernel(root_pos, local_rot, trans, parents, gr, gp):  # pragma: no cover
             fk_link(gr[f], gp[f], parents[j], j, local_rot[f, j], trans[ft, j])
 
 
-@numba.njit(cache=True, inline="always")
-def fk_link(gr, gp, p, j, q, v):  # pragma: no cover - compiled
+def _fk_link(gr, gp, p, j, q, v):  # pragma: no cover - compiled
     """One forward-kinematics link, in place: ``gr[j] = gr[p] * q`` and ``gp[j] = gp[p] + R(gr[p]) v``.
 
-    For compiled kernels: ``gr (J, 4)`` and ``gp (J, 3)`` of one pose, ``q (4,)`` local rotation and
-    ``v (3,)`` local offset of joint ``j`` whose parent is ``p``.
+    For compiled kernels (as :data:`fk_link`): ``gr (J, 4)`` and ``gp (J, 3)`` of one pose, ``q (4,)``
+    local rotation and ``v (3,)`` local offset of joint ``j`` whose parent is ``p``. The same code runs
+    vectorized over frames in the numpy path (``gr (F, J, 4)`` then indexed by ``[..., j, c]``).
     """
-    aw, ax, ay, az = gr[p, 0], gr[p, 1], gr[p, 2], gr[p, 3]
-    gr[j, 0], gr[j, 1], gr[j, 2], gr[j, 3] = qmul(aw, ax, ay, az, q[0], q[1], q[2], q[3])
-    gp[j, 0], gp[j, 1], gp[j, 2] = qrot_add(gp[p, 0], gp[p, 1], gp[p, 2], aw, ax, ay, az, v[0], v[1], v[2])
+    aw, ax, ay, az = gr[..., p, 0], gr[..., p, 1], gr[..., p, 2], gr[..., p, 3]
+    bw, bx, by, bz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    gr[..., j, 0] = aw * bw - ax * bx - ay * by - az * bz
+    gr[..., j, 1] = aw * bx + ax * bw + ay * bz - az * by
+    gr[..., j, 2] = aw * by - ax * bz + ay * bw + az * bx
+    gr[..., j, 3] = aw * bz + ax * by - ay * bx + az * bw
+    vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
+    # R(a) v = v + 2w (u x v) + 2 u x (u x v), with t = 2 (u x v)
+    tx = 2.0 * (ay * vz - az * vy)
+    ty = 2.0 * (az * vx - ax * vz)
+    tz = 2.0 * (ax * vy - ay * vx)
+    gp[..., j, 0] = gp[..., p, 0] + vx + aw * tx + (ay * tz - az * ty)
+    gp[..., j, 1] = gp[..., p, 1] + vy + aw * ty + (az * tx - ax * tz)
+    gp[..., j, 2] = gp[..., p, 2] + vz + aw * tz + (ax * ty - ay * tx)
+
+
+_COMPILED: dict = {}
+
+
+def _compiled() -> dict:
+    """The numba kernels, compiled (or loaded from numba's cache) on first use, so that importing this
+    module, and reading or inspecting small files, never imports numba."""
+    if not _COMPILED:
+        global numba, fk_link  # the kernels find numba.prange and each other by their global names
+        import numba
+
+        fk_link = numba.njit(cache=True, inline="always")(_fk_link)
+        _COMPILED.update(fk_link=fk_link, fk_kernel=numba.njit(cache=True, parallel=True)(_fk_kernel))
+    return _COMPILED
+
+
+def __getattr__(name: str):
+    if name == "fk_link":  # the compiled link for other modules' kernels (``from ... import fk_link``)
+        return _compiled()["fk_link"]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def fk_arrays(root_pos, local_rot, offsets, parents, translations=None) -> tuple[np.ndarray, np.ndarray]:
     """Forward kinematics on plain arrays.
+
+    Motions of up to :data:`SMALL_JOINT_FRAMES` frames x joints run in numpy, larger ones in a compiled
+    kernel parallel over frames; both evaluate the same expressions (:func:`_fk_link`) and agree to
+    1e-12.
 
     Args:
         root_pos: ``(F, 3)`` root positions.
@@ -71,9 +110,15 @@ def fk_arrays(root_pos, local_rot, offsets, parents, translations=None) -> tuple
     parents = np.ascontiguousarray(parents, dtype=np.int64)
     gr = np.empty((f, j, 4))
     gp = np.empty((f, j, 3))
-    trans = offsets[None] if translations is None else translations
-    _fk_kernel(np.ascontiguousarray(root_pos, dtype=np.float64), local_rot,
-               np.ascontiguousarray(trans, dtype=np.float64), parents, gr, gp)
+    trans = np.ascontiguousarray(offsets[None] if translations is None else translations, dtype=np.float64)
+    root_pos = np.ascontiguousarray(root_pos, dtype=np.float64)
+    if f * j <= SMALL_JOINT_FRAMES:
+        gr[:, 0] = local_rot[:, 0]
+        gp[:, 0] = root_pos
+        for k in range(1, j):
+            _fk_link(gr, gp, parents[k], k, local_rot[:, k], trans[:, k])
+    else:
+        _compiled()["fk_kernel"](root_pos, local_rot, trans, parents, gr, gp)
     return gr, gp
 
 

@@ -19,7 +19,11 @@ from kinodyn.errors import MotionError, ParameterError
 from kinodyn.math import interp, quat, xform
 from kinodyn.skeleton import Skeleton
 
-__all__ = ["Motion"]
+__all__ = ["Motion", "MAX_RESAMPLE_JOINT_FRAMES"]
+
+#: the most frames x joints one :meth:`Motion.resample` makes (about 1.6 GB of rotations), so a typo in
+#: a frame rate is an error rather than an allocation of many gigabytes
+MAX_RESAMPLE_JOINT_FRAMES = 50_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,6 +165,10 @@ class Motion:
         if not np.isfinite(fps) or fps <= 0:
             raise ParameterError(f"fps must be positive, got {fps}")
         n = int(np.floor(self.duration * fps + 1e-6)) + 1
+        if n * self.num_joints > MAX_RESAMPLE_JOINT_FRAMES:
+            raise ParameterError(f"fps {fps:g} makes {n:,} frames of {self.num_joints} joints from "
+                                 f"{self.duration:g} s, more than {MAX_RESAMPLE_JOINT_FRAMES:,} joint-frames; "
+                                 "choose a lower fps")
         t = np.arange(n) / fps
         tr = None if self.translations is None else interp.lerp_frames(self.translations, self.fps, t)
         return Motion(self.skeleton, interp.lerp_frames(self.root_pos, self.fps, t),

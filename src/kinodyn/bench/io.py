@@ -7,7 +7,15 @@
 * ``fk_joint_frames_per_s``: joint positions per second of :meth:`Motion.global_positions` on it;
 * ``amc_parse_s``: seconds of :func:`kinodyn.io.amc.read_amc` (ASF and AMC) for CMU trial 01_01
   (2,751 frames);
-* ``parse_fk_frames_per_s`` and speed-up ratios against the baselines.
+* ``parse_fk_frames_per_s`` and speed-up ratios against the baselines;
+* ``cold_info_s``, ``cold_info_mb``: wall-clock seconds and peak resident memory (MB) of a whole
+  ``kinodyn info FILE`` process on a small CMU file (cmu_02_01, 344 frames; a synthetic file of that
+  size without the mocap folder), bytecode and numba caches warm, as a user runs it the second time;
+  ``cold_bvh_pypi_s`` the same for ``python -c "import bvh; ..."`` parsing that file, and
+  ``cold_ratio_vs_bvh_pypi`` the ratio of the two (kinodyn's time over the ``bvh`` package's). Goal:
+  ``cold_info_s`` under 0.3 s;
+* ``library_generate_s``: seconds to generate every built-in clip (cache cleared), and
+  ``bvh_huge_header_reject_s``: seconds to reject a 20 MB hierarchy without ``MOTION``.
 
 The test file is CMU 01_01 (cgspeed BVH) with its frames tiled to 10,000 when ``../shared/mocap`` is
 present (or ``KINODYN_MOCAP`` names the folder); otherwise a synthetic CMU-shaped ASF/AMC pair (the CMU
@@ -26,6 +34,8 @@ from __future__ import annotations
 
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -36,6 +46,8 @@ from kinodyn.bench import BenchResult
 
 __all__ = [
     "BENCH_FRAMES",
+    "COLD_FRAMES",
+    "cold_start",
     "find_mocap",
     "make_amc_files",
     "make_bvh_file",
@@ -52,6 +64,9 @@ _REF_PARSE_FK_S = {"fairmotion": 3.5 + 0.74, "bvhio": 3.6 + 0.57}
 _REF_FRAMES = 2752
 _GOAL_PARSE_SPEEDUP = 10.0
 _GOAL_PARSE_FK_SPEEDUP = 50.0
+_GOAL_COLD_INFO_S = 0.3
+#: frames of the small CMU file of the cold-start figures (cmu_02_01.bvh)
+COLD_FRAMES = 344
 
 # CMU subject 01's ASF bones: name, parent, direction, length (file units), axis (deg, XYZ), dofs.
 _CMU_BONES = (
@@ -204,6 +219,93 @@ def _median_time(fn, repeats: int) -> tuple[float, float]:
     return statistics.median(ts), min(ts)
 
 
+# Runs argv[1:] once and prints its wall seconds, peak resident KiB and CPU seconds. A small process of
+# its own starts the measured one: Linux counts the memory a child shares with its parent before exec
+# in the child's peak, so a child of the (large) benchmark process would report the benchmark's size.
+_LAUNCHER = """import os, sys, time
+t0 = time.perf_counter()
+pid = os.posix_spawn(sys.argv[1], sys.argv[1:], os.environ, file_actions=[(os.POSIX_SPAWN_OPEN, 1, os.devnull,
+                     os.O_WRONLY, 0)])
+_, status, ru = os.wait4(pid, 0)
+wall = time.perf_counter() - t0
+sys.exit(f"exit {os.waitstatus_to_exitcode(status)}") if status else print(wall, ru.ru_maxrss, ru.ru_utime + ru.ru_stime)
+"""
+
+
+def _timed_process(cmd: list[str], env: dict) -> tuple[float, float, float]:
+    """``(wall seconds, peak resident MB, CPU seconds)`` of one process running ``cmd``."""
+    r = subprocess.run([sys.executable, "-c", _LAUNCHER, *cmd], env=env, capture_output=True, text=True,
+                       timeout=600, check=False)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {r.stderr.strip()[-300:]}")
+    wall, kib, cpu = r.stdout.split()
+    return float(wall), float(kib) * 1024 / 1e6, float(cpu)  # Linux reports KiB
+
+
+def cold_start(folder: Path, repeats: int = 9) -> dict:
+    """Whole-process ``kinodyn info`` on a small CMU file against ``python -c "import bvh; ..."`` on it.
+
+    Each command runs once untimed (bytecode and numba caches written, file cached), then ``repeats``
+    times alternating; returns medians and bests of wall time and the peak resident memory.
+    """
+    mocap = find_mocap()
+    path = None if mocap is None else mocap / "locomotion" / "cmu_02_01.bvh"
+    if path is not None and path.is_file():
+        src = f"CMU 02_01 cgspeed BVH ({path.name}, {COLD_FRAMES} frames)"
+    else:
+        path, src = make_bvh_file(Path(folder), frames=COLD_FRAMES)
+    env = dict(os.environ)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # a user's install has its bytecode cache
+    pkg_root = str(Path(__file__).resolve().parents[2])  # this kinodyn, whether installed or not
+    env["PYTHONPATH"] = os.pathsep.join([pkg_root] + [p for p in [env.get("PYTHONPATH")] if p])
+    cmds = {"info": [sys.executable, "-m", "kinodyn.cli", "info", str(path)]}
+    try:
+        import bvh  # noqa: F401 - the PyPI `bvh` package (dev extra)
+    except ImportError:
+        pass
+    else:
+        cmds["bvh_pypi"] = [sys.executable, "-c", "import sys, bvh; bvh.Bvh(open(sys.argv[1]).read()).nframes",
+                            str(path)]
+    runs = {k: [] for k in cmds}
+    for k, cmd in cmds.items():
+        _timed_process(cmd, env)
+    launcher = _timed_process([sys.executable, "-c", "pass"], env)
+    for _ in range(repeats):
+        for k, cmd in cmds.items():
+            runs[k].append(_timed_process(cmd, env))
+    out = {"file": src, "launcher_mb": launcher[1], "load": os.getloadavg()[0]}
+    for k, rs in runs.items():
+        walls = [r[0] for r in rs]
+        out[k] = {"s": statistics.median(walls), "best_s": min(walls), "mb": max(r[1] for r in rs),
+                  "cpu_s": statistics.median(r[2] for r in rs)}
+    return out
+
+
+_GENERATE_ALL = ("import time\nfrom kinodyn.data import library\nt0 = time.perf_counter()\n"
+                 "for name in library.names():\n    library.load(name)\nprint(time.perf_counter() - t0)")
+
+
+def _unit_speeds(tmp: Path) -> dict:
+    """Seconds of two checks that used to be timed in unit tests: generating every built-in clip (in a
+    fresh process, so nothing is cached) and rejecting a 20 MB BVH hierarchy without MOTION."""
+    from kinodyn.errors import BVHParseError
+    from kinodyn.io.bvh import read_bvh
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).resolve().parents[2])]
+                                        + [p for p in [env.get("PYTHONPATH")] if p])
+    out = subprocess.run([sys.executable, "-c", _GENERATE_ALL], env=env, capture_output=True, text=True,
+                         check=True, timeout=600).stdout
+    huge = tmp / "huge.bvh"
+    huge.write_bytes(b"HIERARCHY\n" + b"JOINT x { OFFSET 0 0 0 }\n" * 800_000)
+    t0 = time.perf_counter()
+    try:
+        read_bvh(huge)
+    except BVHParseError:
+        pass
+    return {"library_generate_s": float(out.split()[-1]), "bvh_huge_header_reject_s": time.perf_counter() - t0}
+
+
 def run(quick: bool = False, progress=None) -> BenchResult:
     """Run the I/O benchmark (``quick``: fewer repeats, well under a minute)."""
     from kinodyn.io.amc import read_amc, read_asf
@@ -212,7 +314,8 @@ def run(quick: bool = False, progress=None) -> BenchResult:
     reps_parse = 3 if quick else 9
     reps_fk = 5 if quick else 25
     reps_amc = 3 if quick else 9
-    steps = ["make files", "warm up", "parse BVH", "forward kinematics", "parse AMC", "baseline: bvh package"]
+    steps = ["make files", "warm up", "parse BVH", "forward kinematics", "parse AMC", "baseline: bvh package",
+             "cold start", "library and huge header"]
     bar = progress(total=len(steps), desc="bench io") if progress is not None else None
 
     def step():
@@ -243,13 +346,10 @@ def run(quick: bool = False, progress=None) -> BenchResult:
         except ImportError:
             res.notes["bvh_pypi"] = "the `bvh` package is not installed; no same-run baseline"
         else:
-            def pkg_parse():
-                doc = bvh_pkg.Bvh(bvh_path.read_text())
-                return doc.nframes
-
-            t_pkg, _ = _median_time(pkg_parse, 1 if quick else 3)
+            t_pkg, _ = _median_time(lambda: bvh_pkg.Bvh(bvh_path.read_text()).nframes, 1 if quick else 3)
             base_fps = f / t_pkg
         step()
+        _add_process_figures(res, tmp, quick, step)
     if bar is not None:
         bar.close()
 
@@ -284,3 +384,29 @@ def run(quick: bool = False, progress=None) -> BenchResult:
         "quick": str(bool(quick)),
     })
     return res
+
+
+def _add_process_figures(res: BenchResult, tmp: Path, quick: bool, step) -> None:
+    """The cold start (:func:`cold_start`) and the two figures timed in fresh processes or on big input."""
+    cold = cold_start(tmp, repeats=3 if quick else 9)
+    step()
+    for k, v in _unit_speeds(tmp).items():
+        res.add(k, v, "s")
+    step()
+    info = cold["info"]
+    res.add("cold_info_s", info["s"], "s")
+    res.add("cold_info_mb", info["mb"], "MB")
+    res.baseline["goal_cold_info_s"] = _GOAL_COLD_INFO_S
+    res.add("cold_info_cpu_s", info["cpu_s"], "s")
+    note = (f"whole `kinodyn info` process on {cold['file']}, bytecode and numba caches warm: median "
+            f"{info['s'] * 1e3:.0f} ms, best {info['best_s'] * 1e3:.0f} ms, CPU {info['cpu_s'] * 1e3:.0f} ms, "
+            f"peak RSS {info['mb']:.0f} MB (a bare python: {cold['launcher_mb']:.0f} MB); load average "
+            f"{cold['load']:.1f} on {os.cpu_count()} CPUs")
+    if "bvh_pypi" in cold:
+        pkg = cold["bvh_pypi"]
+        res.add("cold_bvh_pypi_s", pkg["s"], "s")
+        res.add("cold_ratio_vs_bvh_pypi", info["s"] / pkg["s"], "x")
+        res.baseline["cold_bvh_pypi_s"] = pkg["s"]
+        note += (f"; `python -c \"import bvh; bvh.Bvh(text)\"` on the same file: median {pkg['s'] * 1e3:.0f} ms, "
+                 f"best {pkg['best_s'] * 1e3:.0f} ms, {pkg['mb']:.0f} MB (cold_ratio_vs_bvh_pypi = kinodyn / bvh)")
+    res.notes["cold_start"] = note

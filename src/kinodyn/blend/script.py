@@ -42,6 +42,10 @@ __all__ = [
     "ActionEntry",
     "BlendResult",
     "ClipEntry",
+    "MAX_FPS",
+    "MAX_FRAMES",
+    "MAX_NK",
+    "MAX_SECONDS",
     "MixEntry",
     "Script",
     "ScriptError",
@@ -52,6 +56,15 @@ __all__ = [
     "run_script",
     "sliding_report",
 ]
+
+#: Upper bounds of a script's numbers, so a typo (``fps: 1e9``) is an error, not a 15 GiB allocation.
+MAX_FPS = 1000.0
+MAX_SECONDS = 3600.0
+MAX_NK = 100
+#: the most frames a script may produce (duration x fps)
+MAX_FRAMES = 1_000_000
+_LIMITS = {"fps": MAX_FPS, "duration": MAX_SECONDS, "start": MAX_SECONDS, "stop": MAX_SECONDS,
+           "ramp_in": MAX_SECONDS, "ramp_out": MAX_SECONDS, "nk": MAX_NK}
 
 _TOP_KEYS = {"fps", "duration", "synchronize", "nk", "ramp_in", "ramp_out", "neutral", "clips", "actions",
              "name", "skeleton"}
@@ -150,6 +163,9 @@ def _num(where: str, key: str, v, positive=False, nonneg=False, integer=False):
         raise ScriptError(f"{where}: {key} must be positive, got {v:g}")
     if nonneg and v < 0:
         raise ScriptError(f"{where}: {key} must be >= 0, got {v:g}")
+    limit = _LIMITS.get(key)
+    if limit is not None and v > limit:
+        raise ScriptError(f"{where}: {key} must be at most {limit:g}, got {v:g}")
     if integer:
         if v != int(v):
             raise ScriptError(f"{where}: {key} must be an integer, got {v:g}")
@@ -458,6 +474,10 @@ def run_script(script: Script, synchronize: bool | None = None, library=None, ex
     dt = 1.0 / fps
     duration = script.duration if script.duration is not None else _default_duration(script, lib)
     n = int(round(duration * fps)) + 1
+    if n > MAX_FRAMES:
+        where = script.path if script.path is not None else "script"
+        raise ScriptError(f"{where}: {duration:g} s at {fps:g} fps is {n:,} frames, more than {MAX_FRAMES:,}; "
+                          "shorten the script or lower its fps")
     cmds = []
     for i, a in enumerate(script.actions):
         key = a.key or f"{a.clip}@{a.start:g}"

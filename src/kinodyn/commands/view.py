@@ -23,6 +23,8 @@ def add_input_arguments(p) -> None:
     p.add_argument("--up", choices=["y", "z"], help="input up axis (BVH default y)")
     p.add_argument("--drop-first", type=int, default=0, metavar="N",
                    help="drop the first N frames of each file (1 for the T-pose frame of CMU BVH conversions)")
+    p.add_argument("--keep-tpose", action="store_true",
+                   help="keep frame 0 when it is a T-pose added by the converter (skipped by default)")
     p.add_argument("--names", help="comma-separated character names (default: file stems)")
     p.add_argument("--colors", help="comma-separated colours, #rrggbb or C0..C9")
     p.add_argument("--overlays", default="contacts",
@@ -33,7 +35,7 @@ def add_input_arguments(p) -> None:
 
 def load_inputs(args) -> list:
     """The motions named by ``args.inputs`` (files first, then built-in clip names)."""
-    from kinodyn.io import load
+    from kinodyn.io import load, skip_added_tpose
 
     out = []
     for item in args.inputs:
@@ -47,9 +49,13 @@ def load_inputs(args) -> list:
             if args.up and p.suffix.lower() != ".npz":
                 kw["up"] = args.up
             m = load(p, **kw)
+            if not args.drop_first and not getattr(args, "keep_tpose", False):
+                m = skip_added_tpose(m, item)
         else:
             m = _library_clip(item)
         if args.drop_first:
+            if args.drop_first < 0:
+                raise ParameterError(f"--drop-first {args.drop_first}: a number of frames >= 0 to drop from {item}")
             if args.drop_first >= m.num_frames:
                 raise ParameterError(f"--drop-first {args.drop_first} leaves no frames of {item} "
                                      f"({m.num_frames} frames)")

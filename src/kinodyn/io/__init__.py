@@ -5,9 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from kinodyn.errors import FileFormatError
+from kinodyn.io.tpose import drop_added_tpose, has_added_tpose, skip_added_tpose
 from kinodyn.motion import Motion
 
-__all__ = ["load", "save"]
+__all__ = ["load", "save", "has_added_tpose", "drop_added_tpose", "skip_added_tpose"]
 
 
 def load(path, **kwargs) -> Motion:

@@ -17,7 +17,9 @@ an error.
 
 from __future__ import annotations
 
-import numba
+import re
+import warnings
+
 import numpy as np
 
 OK = 0
@@ -29,7 +31,6 @@ HUGE = 4
 _POW10 = np.array([10.0 ** k for k in range(23)])
 
 
-@numba.njit(cache=True)
 def _scale(mant, exp10, pow10):  # pragma: no cover - compiled
     if mant == 0:
         return 0.0
@@ -40,7 +41,6 @@ def _scale(mant, exp10, pow10):  # pragma: no cover - compiled
     return float(mant) * 10.0 ** exp10
 
 
-@numba.njit(cache=True, inline="always")
 def _number(buf, i, n, pow10):  # pragma: no cover - compiled
     """Parse the number starting at ``buf[i]``; returns ``(ok, value, next_i)``.
 
@@ -98,7 +98,7 @@ def _number(buf, i, n, pow10):  # pragma: no cover - compiled
     return True, -v if neg else v, i
 
 
-@numba.njit(cache=True)
+# long kernel: one pass over the bytes, with the number reader written out (an inlined call costs ~30%)
 def parse_rows(buf, per_line, max_lines, out, pow10, max_abs):  # pragma: no cover - compiled
     """Parse whitespace-separated decimals, ``per_line`` values on each non-blank line.
 
@@ -191,7 +191,6 @@ def parse_rows(buf, per_line, max_lines, out, pow10, max_abs):  # pragma: no cov
     return OK, rows, line, n, 0
 
 
-@numba.njit(cache=True)
 def parse_named_lines(buf, out, counts, name_start, name_len, pow10, max_abs):  # pragma: no cover - compiled
     """Parse lines of the form ``[name] number number ...`` (AMC frames).
 
@@ -241,6 +240,52 @@ def parse_named_lines(buf, out, counts, name_start, name_len, pow10, max_abs):  
     return OK, k, line, n
 
 
+#: texts of at most this many bytes are parsed by numpy (:func:`_parse_small`) when they are well formed:
+#: numba's import (0.25-0.5 s) costs more than numpy takes on them (about 0.1 us per byte)
+SMALL_TEXT_BYTES = 1 << 20
+#: at most this many frames x joints are converted from Euler angles by numpy
+SMALL_JOINT_FRAMES = 200_000
+_ONLY_NUMBERS = re.compile(rb"[0-9eE+\-. \t\r\n]*\Z")
+_COMPILED: dict = {}
+
+
+def _compiled() -> dict:
+    """The numba kernels, compiled (or loaded from numba's cache) on first use: reading small files
+    never imports numba. Each kernel finds the ones it calls by their global names."""
+    if not _COMPILED:
+        global numba, _scale, _number
+        import numba
+
+        _scale = numba.njit(cache=True)(_scale)
+        _number = numba.njit(cache=True, inline="always")(_number)
+        _COMPILED.update(parse_rows=numba.njit(cache=True)(parse_rows),
+                         parse_named_lines=numba.njit(cache=True)(parse_named_lines),
+                         euler_columns_to_quat=numba.njit(cache=True, parallel=True)(_euler_kernel))
+    return _COMPILED
+
+
+def _parse_small(buf: bytes, per_line: int, max_lines: int, max_abs: float) -> np.ndarray | None:
+    """numpy's reading of a well-formed text: ``(rows, per_line)`` values, or None when anything is off
+    (a character or token the compiled parser rejects, a ragged line, too many lines, a huge value), so
+    the compiled parser runs and reports the problem with its line. numpy and the compiled parser both
+    round correctly: the values are the same."""
+    if not _ONLY_NUMBERS.match(buf):
+        return None
+    lines = [len(ln.split()) for ln in buf.split(b"\n")]
+    rows = sum(1 for n in lines if n)
+    if rows > max_lines or any(n and n != per_line for n in lines):
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy warns, and stops, at a token it cannot read
+        try:
+            values = np.fromstring(buf, sep=" ") if rows else np.empty(0)
+        except (ValueError, DeprecationWarning):
+            return None
+    if values.size != rows * per_line or not np.all(np.abs(values) <= max_abs):
+        return None
+    return values.reshape(rows, per_line)
+
+
 def parse(buf: bytes | np.ndarray, per_line: int, max_lines: int, max_abs: float = 1e300):
     """Parse ``buf``; returns ``(values (rows, per_line), status, n_rows, bad_line, bad_pos, bad_count)``.
 
@@ -248,23 +293,60 @@ def parse(buf: bytes | np.ndarray, per_line: int, max_lines: int, max_abs: float
     :data:`TOO_MANY_LINES`, :data:`HUGE`); ``bad_line`` counts lines of ``buf`` from 0 and ``bad_pos`` is
     the byte offset of the offending token.
     """
+    if len(buf) <= SMALL_TEXT_BYTES:
+        text = bytes(buf) if isinstance(buf, (bytes, bytearray, memoryview)) else np.asarray(buf).tobytes()
+        values = _parse_small(text, per_line, max_lines, max_abs)
+        if values is not None:  # the compiled parser's answer for a well-formed text
+            return values, OK, len(values), text.count(b"\n"), len(text), 0
     arr = np.frombuffer(buf, dtype=np.uint8) if isinstance(buf, (bytes, bytearray, memoryview)) else buf
     # Each value takes at least two bytes (a digit and a separator), which bounds the rows present, so a
     # huge declared frame count never allocates more than the text can hold.
     limit = min(max_lines, arr.shape[0] // max(2 * per_line, 1) + 1)
     out = np.empty(limit * per_line)
-    status, rows, line, pos, count = parse_rows(arr, per_line, limit, out, _POW10, float(max_abs))
+    status, rows, line, pos, count = _compiled()["parse_rows"](arr, per_line, limit, out, _POW10, float(max_abs))
     return out[: rows * per_line].reshape(rows, per_line), status, rows, line, pos, count
 
 
-@numba.njit(cache=True, parallel=True)
-def euler_columns_to_quat(values, cols, axes, out):  # pragma: no cover - compiled
+def euler_columns_to_quat(values, cols, axes, out) -> None:
     """Quaternions ``out (F, J, 4)`` from Euler degrees stored in columns of ``values (F, C)``.
 
     ``cols (J, 3)`` are the column of each joint's first, second and third rotation channel (-1 for a
     joint without rotation channels: identity); ``axes (J, 3)`` the axis (0, 1, 2 = x, y, z) each
-    channel turns about, applied intrinsically in that order (``R0 @ R1 @ R2``).
+    channel turns about, applied intrinsically in that order (``R0 @ R1 @ R2``). Up to
+    :data:`SMALL_JOINT_FRAMES` frames x joints run in numpy, more in a compiled kernel parallel over
+    frames; both evaluate the same products.
     """
+    if values.shape[0] * cols.shape[0] <= SMALL_JOINT_FRAMES:
+        _euler_numpy(values, cols, axes, out)
+    else:
+        _compiled()["euler_columns_to_quat"](values, cols, axes, out)
+
+
+def _euler_numpy(values, cols, axes, out) -> None:
+    """:func:`_euler_kernel` vectorized over frames and joints."""
+    f, n_joints = values.shape[0], cols.shape[0]
+    w, x, y, z = np.ones((f, n_joints)), np.zeros((f, n_joints)), np.zeros((f, n_joints)), np.zeros((f, n_joints))
+    deg2half = np.pi / 360.0
+    for k in range(3):
+        h = values[:, np.maximum(cols[:, k], 0)] * deg2half
+        c = np.cos(h)
+        s = np.sin(h)
+        turns = (  # right-multiplying by a turn about x, y or z: the kernel's three branches
+            (w * c - x * s, w * s + x * c, y * c + z * s, z * c - y * s),
+            (w * c - y * s, x * c - z * s, w * s + y * c, z * c + x * s),
+            (w * c - z * s, x * c + y * s, y * c - x * s, w * s + z * c),
+        )
+        a = axes[:, k]
+        w, x, y, z = (np.where(a == 0, turns[0][i], np.where(a == 1, turns[1][i], turns[2][i])) for i in range(4))
+    rotated = cols[:, 0] >= 0
+    out[..., 0] = np.where(rotated, w, 1.0)
+    out[..., 1] = np.where(rotated, x, 0.0)
+    out[..., 2] = np.where(rotated, y, 0.0)
+    out[..., 3] = np.where(rotated, z, 0.0)
+
+
+def _euler_kernel(values, cols, axes, out):  # pragma: no cover - compiled
+    """The compiled form of :func:`euler_columns_to_quat`, parallel over frames."""
     n_frames, n_joints = values.shape[0], cols.shape[0]
     deg2half = np.pi / 360.0
     for f in numba.prange(n_frames):
@@ -300,5 +382,6 @@ def parse_named(buf: bytes | np.ndarray, max_abs: float = 1e300):
     name_start = np.full(n_lines, -1, dtype=np.int64)
     name_len = np.zeros(n_lines, dtype=np.int64)
     out = np.empty(arr.shape[0] // 2 + 1)
-    status, k, line, pos = parse_named_lines(arr, out, counts, name_start, name_len, _POW10, float(max_abs))
+    status, k, line, pos = _compiled()["parse_named_lines"](arr, out, counts, name_start, name_len, _POW10,
+                                                            float(max_abs))
     return out[:k], counts, name_start, name_len, status, line, pos

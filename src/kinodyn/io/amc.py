@@ -46,6 +46,7 @@ from kinodyn.skeleton import Skeleton
 __all__ = [
     "CMU_FPS",
     "MAX_ABS_VALUE",
+    "PASS_ASF",
     "AsfSkeleton",
     "amc_from_text",
     "decode_text",
@@ -60,6 +61,8 @@ __all__ = [
 CMU_FPS = 120.0
 #: Largest magnitude accepted for any number (file units or angles).
 MAX_ABS_VALUE = 1e9
+#: how an error about a missing ASF says to name it (the CLI says its --asf option instead)
+PASS_ASF = "pass asf= explicitly"
 _MAX_BONES = 10_000
 _ROT_DOFS = ("rx", "ry", "rz")
 _TRANS_DOFS = ("tx", "ty", "tz")
@@ -516,9 +519,9 @@ def find_asf(amc_path) -> Path:
             return cands[0]
         if len(cands) > 1:
             raise AMCParseError(f"several ASF skeletons could belong to this motion "
-                                f"({', '.join(q.name for q in cands)}); pass asf= explicitly", amc)
+                                f"({', '.join(q.name for q in cands)}); {PASS_ASF}", amc)
     found = f" (found {', '.join(q.name for q in asfs)})" if asfs else ""
-    raise AMCParseError(f"no ASF skeleton found beside the AMC file{found}; pass asf= explicitly", amc)
+    raise AMCParseError(f"no ASF skeleton found beside the AMC file{found}; {PASS_ASF}", amc)
 
 
 # --------------------------------------------------------------------------- AMC

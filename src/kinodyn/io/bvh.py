@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinodyn._arrays import median
 from kinodyn.errors import BVHParseError, MotionError, ParameterError, SkeletonError
 from kinodyn.io import _numparse
 from kinodyn.io.atomic import atomic_write_bytes
@@ -456,14 +457,15 @@ def _body_size(offsets, parents, rot_q, pos, has_pos, end_parents, end_offsets) 
     from kinodyn.kinematics import fk_arrays
 
     n = rot_q.shape[0]
-    idx = np.unique(np.linspace(0, n - 1, min(n, 16)).astype(int))
+    idx = np.linspace(0, n - 1, min(n, 16)).astype(int)
+    idx = idx[np.r_[True, idx[1:] != idx[:-1]]]  # as np.unique (sorted already), without importing numpy.ma
     trans = None
     if pos.shape[1] > 1:
         trans = np.where(has_pos[None, :, None], pos[idx], offsets[None])
     gr, gp = fk_arrays(pos[idx, 0], rot_q[idx], offsets, parents, trans)
     if len(end_parents):
         gp = np.concatenate([gp, gp[:, end_parents] + quat.mul_vec(gr[:, end_parents], end_offsets)], axis=1)
-    return float(np.median(np.ptp(gp, axis=1).max(axis=1)))
+    return float(median(np.ptp(gp, axis=1).max(axis=1)))
 
 
 def to_motion(d: BVHData, scale: float | str | None = None, up: str = "y", name: str = "") -> Motion:

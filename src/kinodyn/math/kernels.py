@@ -1,8 +1,9 @@
 """Scalar quaternion and vector kernels for compiled (numba) loops.
 
-The one set of scalar helpers that every numba kernel of kinodyn uses (forward kinematics, the leg
-IK of the foot lock, the support constraints), so that no kernel writes the quaternion algebra out
-again. They take and return plain floats (tuples), are inlined into their callers and follow the
+The one set of scalar helpers that kinodyn's numba kernels use (the leg IK of the foot lock, the
+support constraints), so that no kernel writes the quaternion algebra out again. Forward kinematics
+(:mod:`kinodyn.kinematics`) is the one exception: its link is written once for numpy and numba alike,
+so that small motions are posed without importing numba. They take and return plain floats (tuples), are inlined into their callers and follow the
 conventions of :mod:`kinodyn.math.quat`: quaternions ``(w, x, y, z)``, ``R(q) v`` the rotation of a
 column vector. The array versions (numpy, batch-first) are in :mod:`kinodyn.math.quat`.
 
