@@ -32,7 +32,7 @@ LONG_KERNEL_MARK = "# long kernel:"
 #: layer of each top-level part of kinodyn; a module may import only from its own layer or below.
 #: Parts in one layer may not import each other unless :data:`SIDEWAYS` allows it.
 LAYERS: dict[str, int] = {
-    "errors": 0, "_arrays": 0, "progress": 0,
+    "errors": 0, "_arrays": 0, "progress": 0, "version": 0,
     "math": 1,
     "skeleton": 2,
     "motion": 3, "kinematics": 3, "limits": 3,

@@ -1,8 +1,9 @@
 """The ``kinodyn`` command.
 
 Core commands live here (``info``, ``convert``, ``library``, ``bench``, ``demo``); each capability adds
-its own command as a module in :mod:`kinodyn.commands` listed in :data:`COMMANDS` (a module defines
-``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``). Bad input prints one line and exits 2;
+its own commands in its package's ``register.py`` (:mod:`kinodyn.registry`), each a module defining
+``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``. Motion inputs are read by
+:mod:`kinodyn.commands.inputs`, the same way for every command. Bad input prints one line and exits 2;
 no tracebacks reach the user.
 """
 
@@ -16,48 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
+from kinodyn import registry
+from kinodyn.commands.inputs import add_motion_options, load_motion, parse_scale
 from kinodyn.errors import KinodynError
 
-__all__ = ["main", "COMMANDS"]
-
-#: command name -> module in kinodyn.commands (capability commands).
-COMMANDS: dict[str, str] = {
-    "body": "kinodyn.commands.body",
-    "blend": "kinodyn.commands.blend",
-    "view": "kinodyn.commands.view",
-    "render": "kinodyn.commands.render",
-}
+__all__ = ["build_parser", "main"]
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line and exit 2, like every other bad input
         self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _load_motion(path: str, args) -> "object":
-    from kinodyn.io import load
-
-    kw = {}
-    if getattr(args, "scale", None) is not None:
-        kw["scale"] = _parse_scale(args.scale)
-    if getattr(args, "asf", None) and path.lower().endswith(".amc"):
-        kw["asf"] = args.asf
-    if getattr(args, "up", None) and not path.lower().endswith(".npz"):
-        kw["up"] = args.up
-    return load(path, **kw)
-
-
-def _parse_scale(s: str):
-    from kinodyn.io.bvh import UNIT_SCALES
-
-    if s in UNIT_SCALES:
-        return s
-    try:
-        v = float(s)
-    except ValueError:
-        raise KinodynError(f"--scale must be a unit ({', '.join(UNIT_SCALES)}) or metres per unit, got {s!r}") \
-            from None
-    return v
 
 
 # --------------------------------------------------------------------------- info
@@ -89,7 +58,7 @@ def _summary(motion, drop_tpose: bool = False) -> dict:
 
 
 def _cmd_info(args) -> int:
-    motion = _load_motion(args.file, args)
+    motion = load_motion(args.file, args)
     info = _summary(motion)
     if args.json:
         print(json.dumps(info, indent=2))
@@ -119,7 +88,7 @@ def _cmd_info(args) -> int:
 def _cmd_convert(args) -> int:
     from kinodyn.io import save
 
-    motion = _load_motion(args.input, args)
+    motion = load_motion(args.input, args)
     if args.drop_first:
         motion = motion[args.drop_first:]
     if args.fps:
@@ -128,7 +97,7 @@ def _cmd_convert(args) -> int:
         motion = motion.mirrored()
     kw = {}
     if args.output.lower().endswith(".bvh"):
-        kw = {"scale": _parse_scale(args.out_unit), "up": args.out_up, "order": args.order}
+        kw = {"scale": parse_scale(args.out_unit), "up": args.out_up, "order": args.order}
     save(args.output, motion, **kw)
     print(f"wrote {args.output}: {motion.num_frames} frames at {motion.fps:g} fps, {motion.num_joints} joints")
     return 0
@@ -185,27 +154,28 @@ def _cmd_demo(args) -> int:
 # --------------------------------------------------------------------------- main
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The ``kinodyn`` parser for the command line ``argv`` (default: every capability command loaded).
+
+    Of the capability commands only the one ``argv`` names (its first word that is not an option) is
+    imported; with ``argv=None`` all are.
+    """
+    command = next((a for a in argv if not a.startswith("-")), None) if argv is not None else None
     p = _Parser(prog="kinodyn", description="Physically interactive character animation.")
     p.add_argument("--version", action="version", version=f"kinodyn {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-
-    def motion_opts(q):
-        q.add_argument("--scale", help="input unit (m, cm, mm, inch, cmu) or metres per unit; default: detect")
-        q.add_argument("--up", choices=["y", "z"], help="input up axis (BVH default y)")
-        q.add_argument("--asf", help="ASF skeleton for an AMC file (default: the .asf beside it)")
 
     q = sub.add_parser("info", help="skeleton, frames, fps, contacts and sliding of a motion file")
     q.add_argument("file")
     q.add_argument("--json", action="store_true", help="print JSON")
     q.add_argument("-v", "--verbose", action="store_true", help="list the joints")
-    motion_opts(q)
+    add_motion_options(q)
     q.set_defaults(func=_cmd_info)
 
     q = sub.add_parser("convert", help="convert BVH/AMC/NPZ to BVH or NPZ (units, fps, mirror)")
     q.add_argument("input")
     q.add_argument("output")
-    motion_opts(q)
+    add_motion_options(q)
     q.add_argument("--fps", type=float, help="resample to this frame rate")
     q.add_argument("--mirror", action="store_true", help="swap left and right")
     q.add_argument("--drop-first", type=int, default=0, metavar="N",
@@ -232,7 +202,23 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--only", action="append", help="run only this demo part (repeatable)")
     q.set_defaults(func=_cmd_demo)
 
-    for name, modname in COMMANDS.items():
+    _add_capability_commands(sub, command, load_all=argv is None)
+    return p
+
+
+def _add_capability_commands(sub, command: str | None, load_all: bool) -> None:
+    """The registered commands: only ``command`` (or, with ``load_all``, every one) is imported, for its
+    arguments; the others are listed with the help text read from their module's source, so
+    ``kinodyn --help`` loads no capability."""
+    root = Path(__file__).resolve().parent
+    for name, modname in registry.commands().items():
+        if not load_all and name != command:
+            text = registry.module_constants(modname, ("HELP", "DESCRIPTION"), root)
+            if text is None:
+                continue  # the capability is not part of this build yet
+            if "HELP" in text:
+                sub.add_parser(name, help=text["HELP"], description=text.get("DESCRIPTION", text["HELP"]))
+                continue
         try:
             mod = importlib.import_module(modname)
         except ModuleNotFoundError as e:
@@ -242,17 +228,16 @@ def build_parser() -> argparse.ArgumentParser:
         q = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         mod.add_arguments(q)
         q.set_defaults(func=mod.run)
-    return p
 
 
 def _version() -> str:
-    from kinodyn import __version__
+    from kinodyn.version import __version__
 
     return __version__
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    parser = build_parser(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

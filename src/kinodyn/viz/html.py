@@ -238,7 +238,7 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
     }
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     script = script.replace("</script", "<\\/script")
-    from kinodyn import __version__
+    from kinodyn.version import __version__
 
     head, rest = template.split("{{DATA}}")
     rest_a, rest_b = rest.split("{{SCRIPT}}")
