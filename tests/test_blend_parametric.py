@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from kinodyn import contacts
-from kinodyn.blend import phases
+from kinodyn import phases
 from kinodyn.blend.mixer import BlendConfig, ClipLibrary, Mixer
 from kinodyn.blend.parametric import blend_cycles, register_cycles
-from kinodyn.blend.phases import DS, LS, RS
+from kinodyn.phases import DS, LS, RS
 from kinodyn.errors import MotionError, ParameterError
 
 #: One frame at 60 fps (seconds): detected element boundaries fall on frames.

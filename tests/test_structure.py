@@ -51,7 +51,7 @@ LAYERS: dict[str, int] = {
 #: (importer, imported) pairs of one layer that may depend on each other, one way.
 SIDEWAYS: set[tuple[str, str]] = {
     ("motion", "kinematics"), ("clips", "io"), ("io", "clips"),
-    ("contacts", "phases"), ("ik", "contacts"),
+    ("phases", "contacts"), ("ik", "contacts"),
     ("response", "contact"), ("crowd", "contact"),
     ("bench", "commands"), ("cli", "demo"), ("cli", "registry"), ("demo", "registry"),
     ("bench", "registry"), ("interface", "bench"), ("interface", "commands"), ("interface", "interface"),

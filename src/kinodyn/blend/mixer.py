@@ -41,8 +41,8 @@ import numba
 import numpy as np
 
 from kinodyn import contacts
-from kinodyn.blend import phases as _phases
-from kinodyn.blend.phases import PhaseConfig, PhaseSequence
+from kinodyn import phases as _phases
+from kinodyn.phases import PhaseConfig, PhaseSequence
 from kinodyn.blend.sync import SyncConfig, Synchronizer
 from kinodyn.blend.timewarp import WarpConfig, WarpPlanner, eval_poly
 from kinodyn.errors import MotionError, ParameterError, UnknownNameError
@@ -609,7 +609,7 @@ class ClipLibrary:
     Args:
         skeleton: the skeleton every clip is played on.
         contact_config: :class:`kinodyn.contacts.ContactConfig` used to build sequences.
-        phase_config: :class:`~kinodyn.blend.phases.PhaseConfig`.
+        phase_config: :class:`~kinodyn.phases.PhaseConfig`.
     """
 
     def __init__(self, skeleton: Skeleton, contact_config=None, phase_config: PhaseConfig = PhaseConfig()):

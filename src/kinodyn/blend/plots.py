@@ -10,13 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from kinodyn.blend.phases import DS, ERR, FLIGHT, LS, RS, phase_name
+from kinodyn.phases import DS, ERR, FLIGHT, LS, PHASE_COLORS, RS, phase_name, time_spans
 
 __all__ = ["PHASE_COLORS", "action_phase_track", "plot_feet", "plot_phases", "plot_timewarp"]
-
-#: Colours of the phases in the bar plots.
-PHASE_COLORS = {int(RS): "#d62728", int(LS): "#1f77b4", int(DS): "#7f7f7f", int(FLIGHT): "#f2c14e",
-                int(ERR): "#000000"}
 
 
 def _save(fig, path) -> Path:
@@ -32,21 +28,9 @@ def _save(fig, path) -> Path:
 
 
 def _runs(t, codes, valid):
-    """Contiguous runs ``(t0, t1, code)`` of ``codes`` where ``valid``."""
-    out = []
-    i = 0
-    n = len(codes)
-    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
-    while i < n:
-        if not valid[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < n and valid[j + 1] and codes[j + 1] == codes[i]:
-            j += 1
-        out.append((t[i], t[j] + dt, int(codes[i])))
-        i = j + 1
-    return out
+    """Contiguous runs ``(t0, t1, code)`` of ``codes`` where ``valid``; a frame lasts the median step of ``t``."""
+    dt = float(np.median(np.diff(t))) if len(codes) > 1 else 1.0
+    return time_spans(codes, t, np.asarray(t) + dt, valid)
 
 
 def action_phase_track(result, key, threshold: float = 1e-3):

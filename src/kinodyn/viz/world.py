@@ -26,6 +26,7 @@ import numpy as np
 from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.kinematics import end_site_positions, forward_kinematics
 from kinodyn.motion import Motion
+from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, frame_phases, time_spans
 from kinodyn.viz import style
 
 __all__ = [
@@ -284,6 +285,10 @@ def body_points(motion: Motion) -> tuple[np.ndarray, np.ndarray, list[str]]:
     return gp, parents, names
 
 
+#: label of each support-phase code in the viewer's bars (:data:`kinodyn.viz.style.PHASE_COLORS`).
+_PHASE_LABELS = {int(DS): "DS", int(RS): "RS", int(LS): "LS", int(ERR): "Err", int(FLIGHT): "flight"}
+
+
 def support_phases(labels: np.ndarray, fps: float, start: float = 0.0) -> list[tuple[float, float, str]]:
     """Support-phase spans from foot contacts.
 
@@ -299,14 +304,10 @@ def support_phases(labels: np.ndarray, fps: float, start: float = 0.0) -> list[t
     labels = np.asarray(labels, dtype=bool)
     if labels.ndim != 2 or labels.shape[1] != 2:
         raise ParameterError(f"labels must have shape (F, 2), got {labels.shape}")
-    code = labels[:, 0].astype(np.int8) + 2 * labels[:, 1].astype(np.int8)
-    names = ("flight", "LS", "RS", "DS")
-    if len(code) == 0:
-        return []
-    cut = np.nonzero(np.diff(code))[0] + 1
-    a = np.concatenate([[0], cut])
-    b = np.concatenate([cut, [len(code)]])
-    return [(start + i / fps, start + j / fps, names[code[i]]) for i, j in zip(a, b)]
+    codes = frame_phases(labels[:, 0], labels[:, 1])
+    frames = np.arange(len(codes) + 1)
+    spans = time_spans(codes, start + frames[:-1] / fps, start + frames[1:] / fps)
+    return [(a, b, _PHASE_LABELS[c]) for a, b, c in spans]
 
 
 # --------------------------------------------------------------------------- building
