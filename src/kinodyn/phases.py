@@ -47,6 +47,7 @@ __all__ = [
     "combine",
     "combine_all",
     "compatible",
+    "contact_spans",
     "frame_phases",
     "from_labels",
     "from_motion",
@@ -145,6 +146,25 @@ def runs(codes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     starts = np.concatenate([[0], cut])
     stops = np.concatenate([cut, [len(c)]])
     return c[starts], starts, stops
+
+
+def contact_spans(labels, fps: float, start: float = 0.0, names=None) -> list[tuple[float, float, str]]:
+    """Support-phase spans ``(t0, t1, name)`` from foot contacts, consecutive equal phases merged.
+
+    Args:
+        labels: ``(F, 2)`` bool contacts, columns left and right.
+        fps: their frame rate; frame ``k`` covers ``[start + k / fps, start + (k + 1) / fps)``.
+        start: time of frame 0 (s).
+        names: phase code -> name shown (default :func:`phase_name`).
+    """
+    labels = np.asarray(labels, dtype=bool)
+    if labels.ndim != 2 or labels.shape[1] != 2:
+        raise ParameterError(f"labels must have shape (F, 2), got {labels.shape}")
+    codes = frame_phases(labels[:, 0], labels[:, 1])
+    frames = np.arange(len(codes) + 1)
+    spans = time_spans(codes, start + frames[:-1] / fps, start + frames[1:] / fps)
+    name = phase_name if names is None else names.__getitem__
+    return [(a, b, name(c)) for a, b, c in spans]
 
 
 def time_spans(codes, begin, end, valid=None) -> list[tuple[float, float, int]]:

@@ -1,7 +1,8 @@
 """Figures of the synchronization: support-phase bars (figure 9), time warps (figure 10), foot tracks.
 
-matplotlib is imported inside each function (optional dependency ``kinodyn[viz]``); every function
-writes one PNG atomically and returns its path.
+Drawn with :func:`kinodyn.plotting.pyplot` (matplotlib imported on first use, optional dependency
+``kinodyn[viz]``) in the phase colours of :data:`kinodyn.phases.PHASE_COLORS`; every function writes
+one PNG atomically (:func:`kinodyn.plotting.write_figure`) and returns its path.
 """
 
 from __future__ import annotations
@@ -11,19 +12,14 @@ from pathlib import Path
 import numpy as np
 
 from kinodyn.phases import DS, ERR, FLIGHT, LS, PHASE_COLORS, RS, phase_name, time_spans
+from kinodyn.plotting import pyplot, write_figure
 
 __all__ = ["PHASE_COLORS", "action_phase_track", "plot_feet", "plot_phases", "plot_timewarp"]
 
 
 def _save(fig, path) -> Path:
-    from kinodyn.io.atomic import atomic_path
-
-    path = Path(path)
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
+    path = write_figure(fig, path, format="png", dpi=110, bbox_inches="tight")
+    pyplot().close(fig)
     return path
 
 
@@ -53,10 +49,7 @@ def plot_phases(result, path, title: str | None = None, compare=None) -> Path:
         path: PNG file to write.
         compare: optionally the unsynchronized result of the same script, drawn as a last bar.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.patches import Patch
 
     rec = result.recording.arrays()
@@ -92,10 +85,7 @@ def plot_phases(result, path, title: str | None = None, compare=None) -> Path:
 def plot_timewarp(result, path, keys=None, title: str | None = None) -> Path:
     """Each action's time warp: knots, the piecewise-linear warp and the cardinal spline actually played
     (figure 10), with the action's speed ``dH/dt`` underneath (continuous for the spline)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     planner = result.mixer.chars[0].planner
     if planner is None:
@@ -143,10 +133,7 @@ def plot_feet(motions: dict, path, labels: dict | None = None, title: str | None
         labels: optional ``{label: {side: (F,) bool}}`` contact frames to shade.
         spans: optional ``[(t0, t1)]`` transition intervals to shade.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     from kinodyn import contacts
 

@@ -26,7 +26,7 @@ from kinodyn.io.atomic import atomic_write_bytes
 from kinodyn.io.bvh import Y_UP_TO_Z_UP
 from kinodyn.math import quat
 from kinodyn.motion import Motion
-from kinodyn.viz import style
+from kinodyn.plotting import style
 from kinodyn.viz.world import bone_radii
 
 __all__ = ["TO_GLTF", "from_gltf_axes", "to_gltf", "to_gltf_axes", "write_gltf"]

@@ -34,7 +34,7 @@ import numpy as np
 
 from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_write_bytes
-from kinodyn.viz import style
+from kinodyn.plotting import style
 from kinodyn.viz.world import Actor, Contacts, Impact, Phases, Trajectory, World, build_world
 
 __all__ = [

@@ -23,7 +23,7 @@ import numpy as np
 
 from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_path
-from kinodyn.viz import style
+from kinodyn.plotting import style
 from kinodyn.viz.world import World, build_world
 
 __all__ = [

@@ -26,8 +26,8 @@ import numpy as np
 from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.kinematics import end_site_positions, forward_kinematics
 from kinodyn.motion import Motion
-from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, frame_phases, time_spans
-from kinodyn.viz import style
+from kinodyn.phases import contact_spans
+from kinodyn.plotting import style
 
 __all__ = [
     "LAYOUTS",
@@ -81,7 +81,7 @@ class Impact:
         impulse: ``(3,)`` impulse vector (N s); the arrow points along it and ends at ``point``.
         character: index of the character hit, if any.
         label: text for legends.
-        color: arrow colour (default :data:`kinodyn.viz.style.IMPACT_COLOR`).
+        color: arrow colour (default :data:`kinodyn.plotting.style.IMPACT_COLOR`).
     """
 
     time: float
@@ -113,7 +113,7 @@ class Phases:
         spans: ``(start_s, stop_s, label)`` triples in scene time.
         label: the bar's title.
         character: index of the character it belongs to (for colouring), if any.
-        colors: label -> colour; labels not listed use :data:`kinodyn.viz.style.PHASE_COLORS`, then grey.
+        colors: label -> colour; labels not listed use :data:`kinodyn.plotting.style.PHASE_COLORS`, then grey.
     """
 
     spans: Sequence[tuple[float, float, str]]
@@ -285,10 +285,6 @@ def body_points(motion: Motion) -> tuple[np.ndarray, np.ndarray, list[str]]:
     return gp, parents, names
 
 
-#: label of each support-phase code in the viewer's bars (:data:`kinodyn.viz.style.PHASE_COLORS`).
-_PHASE_LABELS = {int(DS): "DS", int(RS): "RS", int(LS): "LS", int(ERR): "Err", int(FLIGHT): "flight"}
-
-
 def support_phases(labels: np.ndarray, fps: float, start: float = 0.0) -> list[tuple[float, float, str]]:
     """Support-phase spans from foot contacts.
 
@@ -301,13 +297,7 @@ def support_phases(labels: np.ndarray, fps: float, start: float = 0.0) -> list[t
         ``(t0, t1, label)`` spans covering ``[start, start + F / fps]``, labels ``LS`` (left foot only),
         ``RS`` (right only), ``DS`` (both), ``flight`` (none); consecutive equal labels merged.
     """
-    labels = np.asarray(labels, dtype=bool)
-    if labels.ndim != 2 or labels.shape[1] != 2:
-        raise ParameterError(f"labels must have shape (F, 2), got {labels.shape}")
-    codes = frame_phases(labels[:, 0], labels[:, 1])
-    frames = np.arange(len(codes) + 1)
-    spans = time_spans(codes, start + frames[:-1] / fps, start + frames[1:] / fps)
-    return [(a, b, _PHASE_LABELS[c]) for a, b, c in spans]
+    return contact_spans(labels, fps, start, style.PHASE_LABELS)
 
 
 # --------------------------------------------------------------------------- building
