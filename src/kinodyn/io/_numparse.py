@@ -98,6 +98,7 @@ def _number(buf, i, n, pow10):  # pragma: no cover - compiled
     return True, -v if neg else v, i
 
 
+# long kernel: one pass over the bytes with the scanner state in registers; split, it would pass that state
 @numba.njit(cache=True)
 def parse_rows(buf, per_line, max_lines, out, pow10, max_abs):  # pragma: no cover - compiled
     """Parse whitespace-separated decimals, ``per_line`` values on each non-blank line.
