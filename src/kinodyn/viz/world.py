@@ -389,25 +389,8 @@ def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> l
     return out
 
 
-def build_world(motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
-                name: str = "") -> World:
-    """Prepare characters and overlays for drawing.
-
-    Args:
-        motions: see the module docstring.
-        overlays: overlay names (:data:`OVERLAY_NAMES`) and overlay objects; ``None`` for none.
-        names: one label per character (overrides motion and actor names).
-        colors: one colour per character (``None`` entries take the palette).
-        layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
-            root position moved to its slot) or ``"grid"`` (rows and columns); for clip galleries.
-        name: scene name.
-
-    Raises:
-        ParameterError: unknown overlay or layout, wrong shapes, bad character indices.
-    """
-    if layout not in LAYOUTS:
-        raise ParameterError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
-    actors = _actors(motions, names, colors)
+def _sort_overlays(overlays):
+    """Overlay names and objects sorted by kind: ``(wanted, auto, impacts, phases, trajectories, contacts)``."""
     overlays = () if overlays is None else ([overlays] if isinstance(overlays, (str, Impact, Contacts, Phases,
                                                                                  Trajectory)) else list(overlays))
     wanted = set()  # overlays switched on in the viewer
@@ -441,6 +424,29 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
             wanted.add("trajectories")
         else:
             raise ParameterError(f"overlays must be names or overlay objects, got {type(ov).__name__}")
+    return wanted, auto, impacts, phases, trajs, contacts
+
+
+def build_world(motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
+                name: str = "") -> World:
+    """Prepare characters and overlays for drawing.
+
+    Args:
+        motions: see the module docstring.
+        overlays: overlay names (:data:`OVERLAY_NAMES`) and overlay objects; ``None`` for none.
+        names: one label per character (overrides motion and actor names).
+        colors: one colour per character (``None`` entries take the palette).
+        layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
+            root position moved to its slot) or ``"grid"`` (rows and columns); for clip galleries.
+        name: scene name.
+
+    Raises:
+        ParameterError: unknown overlay or layout, wrong shapes, bad character indices.
+    """
+    if layout not in LAYOUTS:
+        raise ParameterError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    actors = _actors(motions, names, colors)
+    wanted, auto, impacts, phases, trajs, contacts = _sort_overlays(overlays)
     if impacts:
         wanted.add("impacts")
     n = len(actors)
