@@ -13,11 +13,11 @@ Shapes: ``F`` frames, ``P`` points of one foot. Heights and speeds in metres and
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
 
+from kinodyn import roles
 from kinodyn.errors import ParameterError, UnknownNameError
 from kinodyn.kinematics import forward_kinematics, linear_velocity
 from kinodyn.math import quat
@@ -27,10 +27,9 @@ from kinodyn.skeleton import Skeleton
 __all__ = ["ContactConfig", "FootContacts", "find_feet", "foot_points", "detect", "intervals", "sliding",
            "SlidingReport"]
 
-SIDES = ("left", "right")
-_FOOT = r"(foot|ankle|toe|heel|ball|tarsal|metatars)"
-_LEFT = re.compile(r"^(left|[lL](?=[A-Z_])|l(?=(foot|toes?|ankle|heel)$))|(_l$|_L$|Left)")
-_RIGHT = re.compile(r"^(right|[rR](?=[A-Z_])|r(?=(foot|toes?|ankle|heel)$))|(_r$|_R$|Right)")
+SIDES = roles.SIDES
+# The side of a joint name, for kinodyn.physics.body until it calls kinodyn.roles.side_of itself.
+_side = roles.side_of
 
 
 @dataclass(frozen=True)
@@ -64,14 +63,6 @@ class ContactConfig:
             raise ParameterError(f"min_frames must be at least 1, got {self.min_frames}")
 
 
-def _side(name: str) -> str | None:
-    if _LEFT.search(name):
-        return "left"
-    if _RIGHT.search(name):
-        return "right"
-    return None
-
-
 def find_feet(skeleton: Skeleton, feet: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
     """Joint indices of each foot (``{"left": ..., "right": ...}``), found by joint names.
 
@@ -89,11 +80,7 @@ def find_feet(skeleton: Skeleton, feet: dict[str, list[str]] | None = None) -> d
                 raise ParameterError(f"feet override needs a non-empty list for {side!r}, got {feet.get(side)!r}")
             out[side] = skeleton.indices(feet[side])
         return out
-    out = {s: [] for s in SIDES}
-    for j in skeleton.find(_FOOT):
-        s = _side(skeleton.names[j])
-        if s is not None:
-            out[s].append(j)
+    out = roles.feet(skeleton)
     for s in SIDES:
         if not out[s]:
             raise UnknownNameError(
@@ -110,7 +97,7 @@ def foot_points(motion: Motion, feet: dict[str, np.ndarray] | None = None) -> di
     out = {}
     for side, idx in feet.items():
         pts = [gp[:, idx]]
-        ends = np.nonzero(np.isin(sk.end_parents, idx))[0]
+        ends = roles.end_sites_of(sk, idx)
         if len(ends):
             par = sk.end_parents[ends]
             pts.append(gp[:, par] + quat.mul_vec(gr[:, par], sk.end_offsets[ends]))

@@ -17,7 +17,6 @@ the floor), or objects: :class:`Contacts`, :class:`Impact`, :class:`Phases`, :cl
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -28,6 +27,7 @@ from kinodyn.kinematics import end_site_positions, forward_kinematics
 from kinodyn.motion import Motion
 from kinodyn.phases import contact_spans
 from kinodyn.plotting import style
+from kinodyn.roles import bone_role
 
 __all__ = [
     "LAYOUTS",
@@ -222,25 +222,10 @@ class World:
 
 # --------------------------------------------------------------------------- bodies
 
-# (pattern on the lower-cased name of the bone's child point, radius in metres for a 1.75 m body).
-# The bone ending at a joint is named by that joint: the bone ending at "LeftLeg" is the thigh.
-_RADIUS_RULES = (
-    (r"head.*_end$", 0.095),                       # the head itself (Head -> its end site)
-    (r"(finger|thumb|index|middle|ring|pinky|hand.*_end|wrist.*_end|fingers)", 0.026),
-    (r"head", 0.05),                               # the neck (Neck -> Head)
-    (r"neck", 0.075),
-    (r"(forearm|elbow|radius|lowerarm)", 0.045),   # upper arm
-    (r"(arm|humerus)", 0.05),                      # shoulder
-    (r"(shoulder|clavicle|collar)", 0.05),
-    (r"(hand|wrist)", 0.037),                      # forearm
-    (r"(spine|chest|back|thorax|torso|abdomen|pelvis|waist)", 0.1),
-    (r"(upleg|thigh|femur|hip)", 0.075),           # pelvis
-    (r"toe.*_end$", 0.03),
-    (r"(toe|ball)", 0.042),                        # foot
-    (r"(foot|ankle)", 0.05),                       # shin
-    (r"(leg|knee|tibia|shin|calf)", 0.065),        # thigh
-)
-_RULES = tuple((re.compile(p), r) for p, r in _RADIUS_RULES)
+#: Capsule radius in metres for a 1.75 m body of each bone role (:data:`kinodyn.roles.BONE_ROLES`).
+_BONE_RADII = {"head": 0.095, "hand": 0.026, "neck": 0.05, "neck_base": 0.075, "upper_arm": 0.045,
+               "shoulder": 0.05, "clavicle": 0.05, "forearm": 0.037, "trunk": 0.1, "pelvis": 0.075,
+               "toe": 0.03, "foot": 0.042, "shin": 0.05, "thigh": 0.065}
 
 
 def bone_radii(names: Sequence[str], parents: np.ndarray, height: float) -> np.ndarray:
@@ -255,11 +240,7 @@ def bone_radii(names: Sequence[str], parents: np.ndarray, height: float) -> np.n
         if parents[p] < 0:
             continue
         n = name.lower()
-        r = 0.04
-        for pat, rad in _RULES:
-            if pat.search(n):
-                r = rad
-                break
+        r = _BONE_RADII.get(bone_role(name), 0.04)
         if r == 0.075 and "neck" in n and "neck" in names[parents[p]].lower():
             r = 0.05  # a second neck segment
         out[p] = r * s
@@ -340,17 +321,13 @@ def _actors(motions, names, colors) -> list[Actor]:
 
 def _feet_points(motion: Motion) -> dict[str, np.ndarray]:
     from kinodyn.contacts import find_feet
+    from kinodyn.roles import foot_point_indices
 
-    sk = motion.skeleton
     try:
-        feet = find_feet(sk)
+        feet = find_feet(motion.skeleton)
     except KinodynError:
         return {}
-    out = {}
-    for side, idx in feet.items():
-        ends = np.nonzero(np.isin(sk.end_parents, idx))[0] + sk.num_joints
-        out[side] = np.concatenate([idx, ends]).astype(np.int64)
-    return out
+    return foot_point_indices(motion.skeleton, feet)
 
 
 def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> list[np.ndarray]:
