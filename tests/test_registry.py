@@ -106,3 +106,12 @@ def test_two_packages_registering_one_name_is_an_error(tmp_path):
                             "b/register.py": "BENCHMARKS = {'x': 'kinodyn.b.bench'}\n"})
     with pytest.raises(FileFormatError, match="'x' is registered by .*a/register.py too"):
         registry.registrations(root)
+
+
+def test_load_skips_a_missing_capability_but_not_a_missing_dependency(tmp_path, monkeypatch):
+    _tree(tmp_path, {"probe_pkg/__init__.py": "", "probe_pkg/needs.py": "import no_such_dependency_xyz\n"})
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert registry.load("kinodyn.registry") is registry
+    assert registry.load("probe_pkg.not_built") is None
+    with pytest.raises(ModuleNotFoundError, match="no_such_dependency_xyz"):
+        registry.load("probe_pkg.needs")

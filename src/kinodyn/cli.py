@@ -10,7 +10,6 @@ no tracebacks reach the user.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import sys
 from pathlib import Path
@@ -219,12 +218,9 @@ def _add_capability_commands(sub, command: str | None, load_all: bool) -> None:
             if "HELP" in text:
                 sub.add_parser(name, help=text["HELP"], description=text.get("DESCRIPTION", text["HELP"]))
                 continue
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as e:
-            if e.name and modname.startswith(e.name):
-                continue  # the capability is not part of this build yet
-            raise
+        mod = registry.load(modname)
+        if mod is None:
+            continue  # the capability is not part of this build yet
         q = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         mod.add_arguments(q)
         q.set_defaults(func=mod.run)

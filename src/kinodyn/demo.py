@@ -8,7 +8,6 @@ wrote. Everything written is atomic, so an interrupted demo leaves no half-writt
 
 from __future__ import annotations
 
-import importlib
 import time
 from pathlib import Path
 
@@ -30,13 +29,10 @@ def run_demo(out: Path, only: list[str] | None = None) -> None:
         parts = [p for p in parts if p in only]
     for name in parts:
         modname = table[name]
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as e:
-            if e.name and modname.startswith(e.name):
-                print(f"[{name}] not part of this build yet; skipped")
-                continue
-            raise
+        mod = registry.load(modname)
+        if mod is None:
+            print(f"[{name}] not part of this build yet; skipped")
+            continue
         t0 = time.perf_counter()
         print(f"[{name}] ...", flush=True)
         for line in mod.demo(out):

@@ -33,6 +33,7 @@ __all__ = [
     "benchmarks",
     "commands",
     "demo_parts",
+    "load",
     "module_constants",
     "module_file",
     "read_registration",
@@ -197,3 +198,16 @@ def module_constants(module: str, names, root: Path | None = None) -> dict[str, 
             except ValueError:
                 pass  # not a literal: the caller imports the module instead
     return out
+
+
+def load(module: str):
+    """Import a registered module; ``None`` when the module itself is not part of this build (a
+    capability not installed yet). A missing dependency inside it still raises ModuleNotFoundError."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as e:
+        if e.name and module.startswith(e.name):
+            return None
+        raise
