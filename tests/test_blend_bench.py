@@ -23,7 +23,7 @@ def test_bench_blend_quick_writes_the_metrics(tmp_path):
 
 
 def test_crowd_benchmark_runs_small():
-    from kinodyn.bench.blend import crowd_benchmark
+    from kinodyn.blend.bench import crowd_benchmark
 
     r = crowd_benchmark(4, 0.5)
     assert r["frames"] == 30  # 0.5 s at 60 fps

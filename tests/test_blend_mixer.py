@@ -7,7 +7,8 @@ import functools
 import numpy as np
 import pytest
 
-from kinodyn.blend import footlock, phases
+from kinodyn import phases
+from kinodyn.blend import footlock
 from kinodyn.blend.footlock import DROP_TIME, REACH_MARGIN, pin_feet_fast
 from kinodyn.blend.library import builtin
 from kinodyn.blend.mixer import BlendConfig, Mixer

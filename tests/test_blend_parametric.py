@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from kinodyn import contacts
-from kinodyn.blend import phases
+from kinodyn import phases
 from kinodyn.blend.library import add_blend, add_clip, sequence
 from kinodyn.blend.mixer import BlendConfig, Mixer
 from kinodyn.blend.parametric import blend_cycles, register_cycles
-from kinodyn.blend.phases import DS, LS, RS
+from kinodyn.phases import DS, LS, RS
 from kinodyn.clips import ClipStore
 from kinodyn.errors import MotionError, ParameterError
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from kinodyn.blend.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, combine_all
+from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, combine_all
 from kinodyn.blend.sync import SyncConfig, Synchronizer, _result, appendix_set, brute_force_holds, resolve
 from kinodyn.errors import ParameterError
 

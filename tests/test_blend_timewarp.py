@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from kinodyn.blend import timewarp as tw
-from kinodyn.blend.phases import DS, LS, RS, PhaseSequence
+from kinodyn.phases import DS, LS, RS, PhaseSequence
 from kinodyn.blend.sync import SyncConfig, Synchronizer
 from kinodyn.errors import ParameterError
 from kinodyn.math import interp

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from kinodyn.blend.demo import sliding_figures, transition_script
-from kinodyn.blend.phases import ERR, LS, RS
+from kinodyn.phases import ERR, LS, RS
 
 
 @pytest.fixture(scope="module")

@@ -183,7 +183,7 @@ def test_info_on_random_bytes(tmp_path, capsys):
 
 
 def test_amc_without_asf_names_the_option(tmp_path, capsys):
-    from kinodyn.bench.io import synthetic_amc_text
+    from kinodyn.io.bench import synthetic_amc_text
 
     amc = tmp_path / "walk_01.amc"
     amc.write_text(synthetic_amc_text(5))

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from kinodyn.bench.io import synthetic_amc_text, synthetic_asf_text
+from kinodyn.io.bench import synthetic_amc_text, synthetic_asf_text
 from kinodyn.cli import main
 from kinodyn.io.bvh import read_bvh
 
@@ -194,7 +194,7 @@ def test_library_commands(tmp_path, capsys):
 
 def test_bench_files_without_mocap(tmp_path, monkeypatch):
     """Without ../shared/mocap the benchmark makes its own CMU-shaped files."""
-    import kinodyn.bench.io as bench_io
+    import kinodyn.io.bench as bench_io
     from kinodyn.io.amc import read_amc
 
     monkeypatch.setenv("KINODYN_MOCAP", str(tmp_path / "absent"))

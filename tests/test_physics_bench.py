@@ -9,11 +9,13 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from kinodyn.bench import BENCHMARKS, physics
+from kinodyn import bench, registry
+from kinodyn.physics import bench as physics
 
 
 def test_registered():
-    assert BENCHMARKS["physics"] == "kinodyn.bench.physics"
+    assert registry.benchmarks()["physics"] == "kinodyn.physics.bench"
+    assert bench.get("physics") is physics.run
 
 
 def test_tracked_world_holds_n_characters_tracking_the_walk_3_m_apart():

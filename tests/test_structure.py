@@ -32,13 +32,13 @@ LONG_KERNEL_MARK = "# long kernel:"
 #: layer of each top-level part of kinodyn; a module may import only from its own layer or below.
 #: Parts in one layer may not import each other unless :data:`SIDEWAYS` allows it.
 LAYERS: dict[str, int] = {
-    "errors": 0, "_arrays": 0, "progress": 0,
+    "errors": 0, "_arrays": 0, "progress": 0, "version": 0,
     "math": 1,
-    "skeleton": 2,
+    "skeleton": 2, "roles": 2,
     "motion": 3, "kinematics": 3, "limits": 3,
-    "contacts": 4, "phases": 4, "ik": 4, "parallel": 4, "plotting": 4,
+    "contacts": 4, "phases": 4, "ik": 4, "parallel": 4,
     "io": 5, "clips": 5,
-    "data": 6,
+    "data": 6, "plotting": 6,
     "physics": 7, "blend": 7,
     "response": 8, "contact": 8, "crowd": 8,
     "scene": 9,
@@ -50,8 +50,8 @@ LAYERS: dict[str, int] = {
 
 #: (importer, imported) pairs of one layer that may depend on each other, one way.
 SIDEWAYS: set[tuple[str, str]] = {
-    ("motion", "kinematics"), ("clips", "io"), ("io", "clips"),
-    ("contacts", "phases"), ("ik", "contacts"),
+    ("skeleton", "roles"), ("motion", "kinematics"), ("clips", "io"), ("io", "clips"),
+    ("phases", "contacts"), ("ik", "contacts"),
     ("response", "contact"), ("crowd", "contact"),
     ("bench", "commands"), ("cli", "demo"), ("cli", "registry"), ("demo", "registry"),
     ("bench", "registry"), ("interface", "bench"), ("interface", "commands"), ("interface", "interface"),
@@ -286,3 +286,17 @@ def test_the_checks_catch_what_they_name(rule, tmp_path, monkeypatch):
     monkeypatch.setattr(here, "MODULES", _modules())
     with pytest.raises(AssertionError):
         check()
+
+
+def test_design_md_draws_these_layers():
+    """DESIGN.md's layer diagram lists every part of :data:`LAYERS` at its layer, and nothing else."""
+    text = (SRC.parent / "DESIGN.md").read_text()
+    block = text.split("## Layers", 1)[1].split("```", 2)[1]
+    drawn, layer = {}, None
+    for line in block.splitlines()[2:]:  # after the header line
+        if line[:6].strip():
+            layer = int(line[:6])
+        for part in line[7:23].split(","):
+            if part.strip():
+                drawn[part.strip().rstrip("/")] = layer
+    assert drawn == LAYERS

@@ -136,7 +136,7 @@ def test_scene_selector(drv, tmp_path):
 @pytest.mark.slow
 def test_10k_frames_3_characters_under_15_mb_and_plays(tmp_path):
     """The issue's size goal: 10,000 frames x 3 characters in one page < 15 MB that plays in Chromium."""
-    from kinodyn.bench.viz import GOAL_HTML_BYTES, long_scene
+    from kinodyn.viz.bench import GOAL_HTML_BYTES, long_scene
 
     motions = long_scene(10_000, 3)
     page = html.write(tmp_path / "10k.html", motions, ("contacts", "phases"))

@@ -18,7 +18,8 @@ from numpy.testing import assert_allclose
 
 from kinodyn.data import library
 from kinodyn.errors import ParameterError
-from kinodyn.viz import html, style, world
+from kinodyn.plotting import style
+from kinodyn.viz import html, world
 from kinodyn.viz.world import Actor, Contacts, Impact, Phases, Trajectory
 
 _TOL = 1e-9

@@ -86,7 +86,7 @@ def test_frames_follow_the_scene_clock(clips):
     """Each frame shows the scene at its time: the character's silhouette lies over its projected bones
     at that time (not where it stands a second later), the floor colour beside it, and an impact marker
     appears at its point from the impact's time on."""
-    from kinodyn.viz import style
+    from kinodyn.plotting import style
 
     w = build_world(clips["walk"], [Impact(0.1, (0.5, 0.0, 1.0), (0.0, 20.0, 0.0))])
     cfg = render.RenderConfig(width=320, height=192, fps=30, end=0.2, shadows=False, hud=False, camera="fixed")

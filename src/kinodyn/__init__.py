@@ -10,8 +10,7 @@ Conventions: Z up, metres, seconds, radians; rotations are unit quaternions ``(w
 from kinodyn.errors import KinodynError
 from kinodyn.motion import Motion
 from kinodyn.skeleton import Skeleton
-
-__version__ = "0.1.0"
+from kinodyn.version import __version__
 
 __all__ = ["Skeleton", "Motion", "KinodynError", "load", "save", "__version__"]
 

@@ -1,63 +1,31 @@
 """The ``kinodyn`` command.
 
 Core commands live here (``info``, ``convert``, ``library``, ``bench``, ``demo``); each capability adds
-its own command as a module in :mod:`kinodyn.commands` listed in :data:`COMMANDS` (a module defines
-``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``). Bad input prints one line and exits 2;
+its own commands in its package's ``register.py`` (:mod:`kinodyn.registry`), each a module defining
+``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``. Motion inputs are read by
+:mod:`kinodyn.commands.inputs`, the same way for every command. Bad input prints one line and exits 2;
 no tracebacks reach the user.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from kinodyn import registry
+from kinodyn.commands.inputs import add_motion_options, load_motion, parse_scale
 from kinodyn.errors import KinodynError
 
-__all__ = ["main", "COMMANDS"]
-
-#: command name -> module in kinodyn.commands (capability commands).
-COMMANDS: dict[str, str] = {
-    "body": "kinodyn.commands.body",
-    "blend": "kinodyn.commands.blend",
-    "view": "kinodyn.commands.view",
-    "render": "kinodyn.commands.render",
-}
+__all__ = ["build_parser", "main"]
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line and exit 2, like every other bad input
         self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _load_motion(path: str, args) -> "object":
-    from kinodyn.io import load
-
-    kw = {}
-    if getattr(args, "scale", None) is not None:
-        kw["scale"] = _parse_scale(args.scale)
-    if getattr(args, "asf", None) and path.lower().endswith(".amc"):
-        kw["asf"] = args.asf
-    if getattr(args, "up", None) and not path.lower().endswith(".npz"):
-        kw["up"] = args.up
-    return load(path, **kw)
-
-
-def _parse_scale(s: str):
-    from kinodyn.io.bvh import UNIT_SCALES
-
-    if s in UNIT_SCALES:
-        return s
-    try:
-        v = float(s)
-    except ValueError:
-        raise KinodynError(f"--scale must be a unit ({', '.join(UNIT_SCALES)}) or metres per unit, got {s!r}") \
-            from None
-    return v
 
 
 # --------------------------------------------------------------------------- info
@@ -101,7 +69,7 @@ def _summary(motion, drop_tpose: bool = False) -> dict:
 def _cmd_info(args) -> int:
     from kinodyn.io.tpose import ADDED_TPOSE_NOTE
 
-    motion = _load_motion(args.file, args)
+    motion = load_motion(args.file, args)
     if motion.num_frames == 0:
         raise KinodynError(f"{args.file}: the motion has no frames")
     info = _summary(motion)
@@ -142,11 +110,11 @@ def _cmd_convert(args) -> int:
     kw = {}
     if args.output.lower().endswith(".bvh"):
         try:
-            kw = {"scale": _parse_scale(args.out_unit), "up": args.out_up, "order": args.order}
+            kw = {"scale": parse_scale(args.out_unit), "up": args.out_up, "order": args.order}
         except KinodynError:
             raise KinodynError(f"--out-unit must be a unit (m, cm, mm, inch, cmu) or metres per unit, "
                                f"got {args.out_unit!r}") from None
-    motion = _load_motion(args.input, args)
+    motion = load_motion(args.input, args)
     if args.drop_tpose:
         motion, _ = drop_added_tpose(motion)
     if args.drop_first:
@@ -217,17 +185,16 @@ def _cmd_demo(args) -> int:
 # --------------------------------------------------------------------------- main
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The ``kinodyn`` parser for the command line ``argv`` (default: every capability command loaded).
+
+    Of the capability commands only the one ``argv`` names (its first word that is not an option) is
+    imported; with ``argv=None`` all are.
+    """
+    command = next((a for a in argv if not a.startswith("-")), None) if argv is not None else None
     p = _Parser(prog="kinodyn", description="Physically interactive character animation.")
     p.add_argument("--version", action="version", version=f"kinodyn {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-
-    def motion_opts(q):
-        q.add_argument("--scale", help="input length unit (m, cm, mm, inch, cmu) or metres per unit; "
-                       "default: detected from the body's size")
-        q.add_argument("--up", choices=["y", "z"], help="input up axis (default y for BVH and AMC)")
-        q.add_argument("--asf", metavar="FILE.asf",
-                       help="ASF skeleton of an AMC file (default: the matching .asf beside it)")
 
     q = sub.add_parser("info", help="skeleton, frames, fps, contacts and sliding of a motion file",
                        description="Print what a motion file holds: its skeleton (joints, end sites, height), "
@@ -236,7 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("file", help="motion file: .bvh, .amc (with its .asf) or .npz written by kinodyn")
     q.add_argument("--json", action="store_true", help="print the summary as JSON")
     q.add_argument("-v", "--verbose", action="store_true", help="also list the joints and their parents")
-    motion_opts(q)
+    add_motion_options(q)
     q.set_defaults(func=_cmd_info)
 
     q = sub.add_parser("convert", help="convert BVH/AMC/NPZ to BVH or NPZ (units, fps, mirror)",
@@ -246,7 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "is written atomically.")
     q.add_argument("input", help="motion file to read: .bvh, .amc or .npz")
     q.add_argument("output", help="file to write: .bvh or .npz")
-    motion_opts(q)
+    add_motion_options(q)
     q.add_argument("--fps", type=float, help="resample to this frame rate (frames per second, > 0)")
     q.add_argument("--mirror", action="store_true", help="swap left and right")
     q.add_argument("--drop-tpose", action="store_true",
@@ -276,27 +243,39 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--only", action="append", help="run only this demo part (repeatable)")
     q.set_defaults(func=_cmd_demo)
 
-    for name, modname in COMMANDS.items():
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as e:
-            if e.name and modname.startswith(e.name):
-                continue  # the capability is not part of this build yet
-            raise
-        q = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
-        mod.add_arguments(q)
-        q.set_defaults(func=mod.run)
+    _add_capability_commands(sub, command, load_all=argv is None)
     return p
 
 
+def _add_capability_commands(sub, command: str | None, load_all: bool) -> None:
+    """The registered commands: only ``command`` (or, with ``load_all``, every one) is imported, for its
+    arguments; the others are listed with the help text read from their module's source, so
+    ``kinodyn --help`` loads no capability."""
+    root = Path(__file__).resolve().parent
+    for name, modname in registry.commands().items():
+        if not load_all and name != command:
+            text = registry.module_constants(modname, ("HELP", "DESCRIPTION"), root)
+            if text is None:
+                continue  # the capability is not part of this build yet
+            if "HELP" in text:
+                sub.add_parser(name, help=text["HELP"], description=text.get("DESCRIPTION", text["HELP"]))
+                continue
+        mod = registry.load(modname)
+        if mod is None:
+            continue  # the capability is not part of this build yet
+        q = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
+        mod.add_arguments(q)
+        q.set_defaults(func=mod.run)
+
+
 def _version() -> str:
-    from kinodyn import __version__
+    from kinodyn.version import __version__
 
     return __version__
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    parser = build_parser(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

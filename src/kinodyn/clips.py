@@ -10,7 +10,7 @@ frame (``ground``). A cyclic clip is closed (:func:`close_loop`) and loops: one 
 clip on by ``loop[k]``, and :func:`unroll_loops` composes looped playback.
 
 Per clip the store may also hold its support: the support-phase sequence (codes of
-:mod:`kinodyn.blend.phases`), the phase and the left foot's share of the weight at every frame, and the
+:mod:`kinodyn.phases`), the phase and the left foot's share of the weight at every frame, and the
 height of its planted feet (:func:`rest_height`), as :class:`ClipSupport` rows computed by the caller
 (blending builds them from foot contacts). A store is frozen: :meth:`ClipStore.add` returns a new one.
 It saves to one ``.npz`` archive with JSON metadata (no pickles) and loads back exactly.
@@ -49,7 +49,7 @@ class ClipSupport(NamedTuple):
     """The support of one clip, as the store keeps it (computed by the caller).
 
     Attributes:
-        phases: ``(K,)`` int8 support-phase codes of its sequence (:mod:`kinodyn.blend.phases`).
+        phases: ``(K,)`` int8 support-phase codes of its sequence (:mod:`kinodyn.phases`).
         durations: ``(K,)`` element durations in seconds.
         start: clip time of the first element's start (negative when it straddles a loop point).
         frame_phase: ``(F,)`` int8 phase code at every frame.

@@ -13,11 +13,11 @@ Shapes: ``F`` frames, ``P`` points of one foot. Heights and speeds in metres and
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
 
+from kinodyn import roles
 from kinodyn._arrays import percentile
 from kinodyn.errors import ParameterError, UnknownNameError
 from kinodyn.kinematics import forward_kinematics, linear_velocity
@@ -28,10 +28,7 @@ from kinodyn.skeleton import Skeleton
 __all__ = ["ContactConfig", "FootContacts", "find_feet", "foot_points", "detect", "intervals", "sliding",
            "SlidingReport"]
 
-SIDES = ("left", "right")
-_FOOT = r"(foot|ankle|toe|heel|ball|tarsal|metatars)"
-_LEFT = re.compile(r"^(left|[lL](?=[A-Z_])|l(?=(foot|toes?|ankle|heel)$))|(_l$|_L$|Left)")
-_RIGHT = re.compile(r"^(right|[rR](?=[A-Z_])|r(?=(foot|toes?|ankle|heel)$))|(_r$|_R$|Right)")
+SIDES = roles.SIDES
 
 
 @dataclass(frozen=True)
@@ -65,19 +62,6 @@ class ContactConfig:
             raise ParameterError(f"min_frames must be at least 1, got {self.min_frames}")
 
 
-def _side(name: str) -> str | None:
-    if _LEFT.search(name):
-        return "left"
-    if _RIGHT.search(name):
-        return "right"
-    return None
-
-
-def name_side(name: str) -> str | None:
-    """``"left"`` or ``"right"`` when a joint name says so (``LeftFoot``, ``l_ankle``), else ``None``."""
-    return _side(name)
-
-
 def find_feet(skeleton: Skeleton, feet: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
     """Joint indices of each foot (``{"left": ..., "right": ...}``), found by joint names.
 
@@ -95,11 +79,7 @@ def find_feet(skeleton: Skeleton, feet: dict[str, list[str]] | None = None) -> d
                 raise ParameterError(f"feet override needs a non-empty list for {side!r}, got {feet.get(side)!r}")
             out[side] = skeleton.indices(feet[side])
         return out
-    out = {s: [] for s in SIDES}
-    for j in skeleton.find(_FOOT):
-        s = _side(skeleton.names[j])
-        if s is not None:
-            out[s].append(j)
+    out = roles.feet(skeleton)
     for s in SIDES:
         if not out[s]:
             raise UnknownNameError(
@@ -116,7 +96,7 @@ def foot_points(motion: Motion, feet: dict[str, np.ndarray] | None = None) -> di
     out = {}
     for side, idx in feet.items():
         pts = [gp[:, idx]]
-        ends = np.nonzero(np.isin(sk.end_parents, idx))[0]
+        ends = roles.end_sites_of(sk, idx)
         if len(ends):
             par = sk.end_parents[ends]
             pts.append(gp[:, par] + quat.mul_vec(gr[:, par], sk.end_offsets[ends]))

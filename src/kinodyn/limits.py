@@ -23,6 +23,7 @@ import numpy as np
 
 from kinodyn.errors import ParameterError
 from kinodyn.math import quat
+from kinodyn.roles import ROLES, has_role
 from kinodyn.skeleton import Skeleton
 
 __all__ = ["JointLimit", "JOINT_TYPES", "limits_for", "joint_kind", "violations", "LimitReport", "clamp",
@@ -70,27 +71,27 @@ class JointLimit:
             raise ParameterError(f"hinge range must have lower <= upper, got [{self.lower}, {self.upper}]")
 
 
-# (type name, regex on the joint name, kind, parameters). Ranges are generous human ranges from the
-# rest pose; "flex" hinges bend the distal end backward (knee) or forward (elbow).
-JOINT_TYPES: tuple[tuple[str, str, str, dict], ...] = (
-    ("hip_joint", r"hipjoint", "fixed", {"max_angle": 10 * _DEG}),
-    ("thigh", r"upleg|thigh|femur|^(left|right|l|r)_?hip$|upperleg", "ball", {"max_angle": 125 * _DEG}),
-    ("knee", r"knee|shin|tibia|calf|lowerleg|(?<!up)leg$", "hinge",
-     {"lower": -10 * _DEG, "upper": 155 * _DEG, "bend": "backward", "twist": 45 * _DEG}),
-    ("ankle", r"foot|ankle", "ball", {"max_angle": 60 * _DEG}),
-    ("toe", r"toe", "ball", {"max_angle": 60 * _DEG}),
-    ("clavicle", r"clavicle|collar", "ball", {"max_angle": 35 * _DEG}),
-    ("forearm", r"forearm|elbow|radius|lowerarm", "hinge",
-     {"lower": -10 * _DEG, "upper": 155 * _DEG, "bend": "forward", "twist": 100 * _DEG}),
-    ("upper_arm", r"upperarm|humerus|(?<!fore)arm$", "ball", {"max_angle": 175 * _DEG}),
-    ("shoulder", r"shoulder", "ball", {"max_angle": 35 * _DEG}),  # CMU: the clavicle is "LeftShoulder"
-    ("finger", r"finger|thumb|index|middle|ring|pinky|hand.*\d|^[lr]hand$", "ball", {"max_angle": 90 * _DEG}),
-    ("wrist", r"hand|wrist", "ball", {"max_angle": 85 * _DEG}),
-    ("neck", r"neck", "ball", {"max_angle": 60 * _DEG}),
-    ("head", r"head", "ball", {"max_angle": 60 * _DEG}),
-    ("spine", r"spine|chest|back|torso|abdomen|thorax|pelvis|waist|lowerback|upperback", "ball",
-     {"max_angle": 50 * _DEG}),
+# (type name, kind, parameters), tried in this order (first match wins); each type's name pattern is its
+# row of kinodyn.roles.ROLES. Ranges are generous human ranges from the rest pose; "flex" hinges bend the
+# distal end backward (knee) or forward (elbow).
+_TYPE_LIMITS: tuple[tuple[str, str, dict], ...] = (
+    ("hip_joint", "fixed", {"max_angle": 10 * _DEG}),
+    ("thigh", "ball", {"max_angle": 125 * _DEG}),
+    ("knee", "hinge", {"lower": -10 * _DEG, "upper": 155 * _DEG, "bend": "backward", "twist": 45 * _DEG}),
+    ("ankle", "ball", {"max_angle": 60 * _DEG}),
+    ("toe", "ball", {"max_angle": 60 * _DEG}),
+    ("clavicle", "ball", {"max_angle": 35 * _DEG}),
+    ("forearm", "hinge", {"lower": -10 * _DEG, "upper": 155 * _DEG, "bend": "forward", "twist": 100 * _DEG}),
+    ("upper_arm", "ball", {"max_angle": 175 * _DEG}),
+    ("shoulder", "ball", {"max_angle": 35 * _DEG}),  # CMU: the clavicle is "LeftShoulder"
+    ("finger", "ball", {"max_angle": 90 * _DEG}),
+    ("wrist", "ball", {"max_angle": 85 * _DEG}),
+    ("neck", "ball", {"max_angle": 60 * _DEG}),
+    ("head", "ball", {"max_angle": 60 * _DEG}),
+    ("spine", "ball", {"max_angle": 50 * _DEG}),
 )
+#: (type name, regex on the joint name, kind, parameters), first match wins.
+JOINT_TYPES: tuple[tuple[str, str, str, dict], ...] = tuple((n, ROLES[n], k, kw) for n, k, kw in _TYPE_LIMITS)
 _DEFAULT = ("other", "ball", {"max_angle": 90 * _DEG})
 _COMPILED = [(n, re.compile(p, re.IGNORECASE), k, kw) for n, p, k, kw in JOINT_TYPES]
 
@@ -105,7 +106,7 @@ def joint_kind(skeleton: Skeleton, j: int) -> tuple[str, str, dict]:
             if tname == "shoulder":
                 # 3ds Max and others call the upper arm "Shoulder" and the clavicle "Collar".
                 parent = skeleton.names[skeleton.parents[j]]
-                if re.search(r"collar|clavicle", parent, re.IGNORECASE):
+                if has_role(parent, "clavicle"):
                     return ("upper_arm", "ball", {"max_angle": 175 * _DEG})
             return tname, kind, kw
     return _DEFAULT

@@ -17,35 +17,9 @@ import numpy as np
 
 from kinodyn._arrays import readonly
 from kinodyn.errors import SkeletonError, UnknownNameError
+from kinodyn.roles import mirror_name
 
 __all__ = ["Skeleton", "mirror_name"]
-
-_SIDE_PATTERNS = (
-    (re.compile(r"^Left"), "Right"), (re.compile(r"^Right"), "Left"),
-    (re.compile(r"^left"), "right"), (re.compile(r"^right"), "left"),
-    (re.compile(r"^L(?=[A-Z_])"), "R"), (re.compile(r"^R(?=[A-Z_])"), "L"),
-    (re.compile(r"^l(?=[A-Z_])"), "r"), (re.compile(r"^r(?=[A-Z_])"), "l"),
-    (re.compile(r"^l_"), "r_"), (re.compile(r"^r_"), "l_"),
-    (re.compile(r"Left"), "Right"), (re.compile(r"Right"), "Left"),
-    (re.compile(r"_l$"), "_r"), (re.compile(r"_r$"), "_l"),
-    (re.compile(r"_L$"), "_R"), (re.compile(r"_R$"), "_L"),
-)
-
-
-def mirror_name(name: str) -> str:
-    """The name of the opposite-side joint (``LeftArm`` -> ``RightArm``, ``lfemur`` -> ``rfemur``).
-
-    Names without a side marker map to themselves.
-    """
-    for pat, rep in _SIDE_PATTERNS:
-        if pat.search(name):
-            return pat.sub(rep, name, count=1)
-    # CMU ASF style: lowercase l/r prefix before a lowercase bone name (lfemur, rhand, lthumb).
-    m = re.match(r"^([lr])(femur|tibia|foot|toes|clavicle|humerus|radius|wrist|hand|fingers|thumb|hipjoint)$",
-                 name)
-    if m:
-        return ("r" if m.group(1) == "l" else "l") + m.group(2)
-    return name
 
 
 @dataclass(frozen=True, eq=False)

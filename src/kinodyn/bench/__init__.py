@@ -1,8 +1,9 @@
 """Benchmarks, one per capability, registered by name and run by ``kinodyn bench NAME --json FILE``.
 
-A benchmark module defines ``run(quick: bool, progress) -> BenchResult`` and is listed in
-:data:`BENCHMARKS`. Results are written as JSON: ``{"name", "metrics": {key: number}, "units": {key:
-unit}, "baseline": {...}, "machine": {...}}``. Speed goals live here, never in unit tests.
+A benchmark module defines ``run(quick: bool, progress) -> BenchResult`` and is registered in its
+package's ``register.py`` (``BENCHMARKS``, see :mod:`kinodyn.registry`); it lives beside what it
+measures (``kinodyn.physics.bench``). Results are written as JSON: ``{"name", "metrics": {key: number},
+"units": {key: unit}, "baseline": {...}, "machine": {...}}``. Speed goals live there, never in unit tests.
 """
 
 from __future__ import annotations
@@ -13,17 +14,15 @@ import os
 import platform
 from dataclasses import dataclass, field
 
+from kinodyn import registry
 from kinodyn.errors import UnknownNameError
 
-__all__ = ["BenchResult", "BENCHMARKS", "get", "run", "machine_info"]
+__all__ = ["BenchResult", "get", "machine_info", "names", "run"]
 
-#: name -> module implementing ``run(quick, progress)``.
-BENCHMARKS: dict[str, str] = {
-    "io": "kinodyn.bench.io",
-    "physics": "kinodyn.bench.physics",
-    "blend": "kinodyn.bench.blend",
-    "viz": "kinodyn.bench.viz",
-}
+
+def names() -> list[str]:
+    """Names of the registered benchmarks."""
+    return list(registry.benchmarks())
 
 
 @dataclass
@@ -52,10 +51,11 @@ def machine_info() -> dict:
 
 def get(name: str):
     """The ``run`` function of benchmark ``name``."""
-    if name not in BENCHMARKS:
-        raise UnknownNameError(f"unknown benchmark {name!r}; available: {', '.join(sorted(BENCHMARKS))}")
+    table = registry.benchmarks()
+    if name not in table:
+        raise UnknownNameError(f"unknown benchmark {name!r}; available: {', '.join(sorted(table))}")
     try:
-        mod = importlib.import_module(BENCHMARKS[name])
+        mod = importlib.import_module(table[name])
     except ModuleNotFoundError as e:
         raise UnknownNameError(f"benchmark {name!r} is not available in this build ({e.name} missing)") from None
     return mod.run

@@ -4,7 +4,7 @@ A real-time motion mixer whose actions start and stop at any time, with prioriti
 phases of the actions (right, left, double support, flight) are synchronized before blending, so feet
 do not slide when a motion with the left foot down meets one with the right foot down.
 
-Modules: :mod:`~kinodyn.blend.phases` (sequences, the algebra, extension: sections 4.1-4.3),
+Modules: :mod:`~kinodyn.phases` (sequences, the algebra, extension: sections 4.1-4.3),
 :mod:`~kinodyn.blend.sync` (chronological organization, section 5.1, appendix A),
 :mod:`~kinodyn.blend.timewarp` (durations and time warp, 5.2-5.3), :mod:`~kinodyn.blend.mixer`
 (the mixer) with :mod:`~kinodyn.blend.weights` (ramps, priorities), :mod:`~kinodyn.blend.pose` (pose
@@ -18,7 +18,7 @@ its sequence with its motion), :mod:`~kinodyn.blend.script` (YAML scripts),
 from kinodyn.blend.library import add_blend, add_clip
 from kinodyn.blend.mixer import BlendConfig, Mixer, Pose
 from kinodyn.blend.parametric import blend_cycles
-from kinodyn.blend.phases import (
+from kinodyn.phases import (
     DS,
     ERR,
     FLIGHT,

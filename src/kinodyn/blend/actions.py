@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from kinodyn.blend.phases import PhaseSequence
+from kinodyn.phases import PhaseSequence
 
 __all__ = ["ActionRecord", "ActionState", "Recording"]
 

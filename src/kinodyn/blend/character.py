@@ -69,7 +69,7 @@ class Character:
         slots: the mixer's :class:`Slots`; the character owns row ``index`` of every array (views), the
             mixer reads them all at once every frame.
         store: the :class:`~kinodyn.clips.ClipStore` its actions play from.
-        sequences: each clip's :class:`~kinodyn.blend.phases.PhaseSequence`.
+        sequences: each clip's :class:`~kinodyn.phases.PhaseSequence`.
         config: the mixer's :class:`~kinodyn.blend.mixer.BlendConfig`.
         keep_log: keep the synchronizer's events and the planner's warp history (for analysis).
     """

@@ -12,7 +12,7 @@ through the floor).
 The root's horizontal position follows the held feet, each by the share of the body's weight it
 carries: all of it on a single support, passed linearly from the old support foot to the new one over a
 double support, as the actions' sequences say
-(:meth:`~kinodyn.blend.phases.PhaseSequence.left_share`), and faded out as a foot's vote nears one
+(:meth:`~kinodyn.phases.PhaseSequence.left_share`), and faded out as a foot's vote nears one
 half. So the root never jumps when a foot lifts or lands. Two-bone inverse kinematics of each leg (hip,
 knee, ankle) then puts the feet where they are held, keeping each foot's world orientation; when a held
 foot is beyond a straight leg's reach (the back foot at push-off) the pelvis comes down a little, and

@@ -6,16 +6,16 @@ detection per clip gives both the sequence and the height of its planted feet
 (:func:`kinodyn.clips.rest_height`), which the support constraints keep. Every function returns a new
 store (stores are frozen).
 
-Uses: :mod:`kinodyn.clips` (the store), :mod:`kinodyn.contacts`, :mod:`kinodyn.blend.phases`,
+Uses: :mod:`kinodyn.clips` (the store), :mod:`kinodyn.contacts`, :mod:`kinodyn.phases`,
 :mod:`kinodyn.blend.parametric` (blended cycles).
 """
 
 from __future__ import annotations
 
 from kinodyn import contacts
-from kinodyn.blend import phases as _phases
+from kinodyn import phases as _phases
 from kinodyn.blend.parametric import blend_cycles
-from kinodyn.blend.phases import PhaseConfig, PhaseSequence
+from kinodyn.phases import PhaseConfig, PhaseSequence
 from kinodyn.clips import ClipStore, ClipSupport, rest_height
 from kinodyn.errors import MotionError, ParameterError, UnknownNameError
 from kinodyn.motion import Motion
@@ -36,7 +36,7 @@ def add_clip(store: ClipStore, name: str, motion: Motion, cyclic: bool = False,
         sequence: its support-phase sequence; detected from foot contacts when ``None``.
         feet: foot joints for contact detection (see :func:`kinodyn.contacts.find_feet`).
         contact_config: :class:`kinodyn.contacts.ContactConfig` used to build sequences.
-        phase_config: :class:`~kinodyn.blend.phases.PhaseConfig` (default: its defaults).
+        phase_config: :class:`~kinodyn.phases.PhaseConfig` (default: its defaults).
     """
     if not isinstance(store, ClipStore):
         raise ParameterError(f"store must be a ClipStore, got {type(store).__name__}")

@@ -45,11 +45,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinodyn.blend import library as _library
-from kinodyn.blend import phases as _phases
+from kinodyn import phases as _phases
 from kinodyn.blend.actions import ActionState, Recording
 from kinodyn.blend.character import Character, Slots
 from kinodyn.blend.footlock import FootLock
-from kinodyn.blend.phases import PhaseSequence
+from kinodyn.phases import PhaseSequence
 from kinodyn.blend.pose import Pose, blend_frames_fast, blend_rotations
 from kinodyn.blend.sync import SyncConfig
 from kinodyn.blend.timewarp import WarpConfig

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinodyn.blend.phases import PhaseSequence
+from kinodyn.phases import PhaseSequence
 from kinodyn.blend.pose import blend_rotations
 from kinodyn.clips import ClipStore
 from kinodyn.errors import MotionError, ParameterError
@@ -63,7 +63,7 @@ def blend_cycles(motions, weights, sequences=None, fps: float | None = None, con
         motions: ``C`` cyclic clips (one cycle each, last frame = first frame moved on) of the same
             skeleton topology; other bone lengths are retargeted to the first clip's skeleton.
         weights: ``(C,)`` non-negative weights (normalized here).
-        sequences: their cyclic :class:`~kinodyn.blend.phases.PhaseSequence`; detected from foot
+        sequences: their cyclic :class:`~kinodyn.phases.PhaseSequence`; detected from foot
             contacts when ``None``.
         fps: frame rate of the result (default: the first clip's).
         contact_config: :class:`kinodyn.contacts.ContactConfig` for detecting the sequences.
@@ -76,7 +76,7 @@ def blend_cycles(motions, weights, sequences=None, fps: float | None = None, con
     Raises:
         ParameterError: bad weights or fps; MotionError: cycles of different support patterns.
     """
-    from kinodyn.blend import phases as _phases
+    from kinodyn import phases as _phases
 
     motions = list(motions)
     if not motions or not all(isinstance(m, Motion) for m in motions):

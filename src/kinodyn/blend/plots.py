@@ -1,7 +1,8 @@
 """Figures of the synchronization: support-phase bars (figure 9), time warps (figure 10), foot tracks.
 
-matplotlib is imported inside each function (optional dependency ``kinodyn[viz]``); every function
-writes one PNG atomically and returns its path.
+Drawn with :func:`kinodyn.plotting.pyplot` (matplotlib imported on first use, optional dependency
+``kinodyn[viz]``) in the phase colours of :data:`kinodyn.phases.PHASE_COLORS`; every function writes
+one PNG atomically (:func:`kinodyn.plotting.write_figure`) and returns its path.
 """
 
 from __future__ import annotations
@@ -10,43 +11,22 @@ from pathlib import Path
 
 import numpy as np
 
-from kinodyn.blend.phases import DS, ERR, FLIGHT, LS, RS, phase_name
+from kinodyn.phases import DS, ERR, FLIGHT, LS, PHASE_COLORS, RS, phase_name, time_spans
+from kinodyn.plotting import pyplot, write_figure
 
 __all__ = ["PHASE_COLORS", "action_phase_track", "plot_feet", "plot_phases", "plot_timewarp"]
 
-#: Colours of the phases in the bar plots.
-PHASE_COLORS = {int(RS): "#d62728", int(LS): "#1f77b4", int(DS): "#7f7f7f", int(FLIGHT): "#f2c14e",
-                int(ERR): "#000000"}
-
 
 def _save(fig, path) -> Path:
-    from kinodyn.io.atomic import atomic_path
-
-    path = Path(path)
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
+    path = write_figure(fig, path, format="png", dpi=110, bbox_inches="tight")
+    pyplot().close(fig)
     return path
 
 
 def _runs(t, codes, valid):
-    """Contiguous runs ``(t0, t1, code)`` of ``codes`` where ``valid``."""
-    out = []
-    i = 0
-    n = len(codes)
-    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
-    while i < n:
-        if not valid[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < n and valid[j + 1] and codes[j + 1] == codes[i]:
-            j += 1
-        out.append((t[i], t[j] + dt, int(codes[i])))
-        i = j + 1
-    return out
+    """Contiguous runs ``(t0, t1, code)`` of ``codes`` where ``valid``; a frame lasts the median step of ``t``."""
+    dt = float(np.median(np.diff(t))) if len(codes) > 1 else 1.0
+    return time_spans(codes, t, np.asarray(t) + dt, valid)
 
 
 def action_phase_track(result, key, threshold: float = 1e-3):
@@ -69,10 +49,7 @@ def plot_phases(result, path, title: str | None = None, compare=None) -> Path:
         path: PNG file to write.
         compare: optionally the unsynchronized result of the same script, drawn as a last bar.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.patches import Patch
 
     rec = result.recording.arrays()
@@ -108,10 +85,7 @@ def plot_phases(result, path, title: str | None = None, compare=None) -> Path:
 def plot_timewarp(result, path, keys=None, title: str | None = None) -> Path:
     """Each action's time warp: knots, the piecewise-linear warp and the cardinal spline actually played
     (figure 10), with the action's speed ``dH/dt`` underneath (continuous for the spline)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     timing = result.timing
     if timing is None:
@@ -158,10 +132,7 @@ def plot_feet(motions: dict, path, labels: dict | None = None, title: str | None
         labels: optional ``{label: {side: (F,) bool}}`` contact frames to shade.
         spans: optional ``[(t0, t1)]`` transition intervals to shade.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     from kinodyn import contacts
 

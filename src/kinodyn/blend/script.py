@@ -403,7 +403,7 @@ def intended_contacts(result, threshold: float = 0.5) -> dict:
     judges synchronized and unsynchronized blends, unlike contacts detected on the result (which can
     never see a foot that slides faster than the detector's speed threshold).
     """
-    from kinodyn.blend import phases as P
+    from kinodyn import phases as P
 
     rec = result.recording.arrays()
     n = result.motion.num_frames

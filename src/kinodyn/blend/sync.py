@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import NamedTuple
 
-from kinodyn.blend.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, phase_name
+from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, phase_name
 from kinodyn.errors import ParameterError
 
 __all__ = [

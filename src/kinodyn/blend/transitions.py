@@ -32,7 +32,7 @@ def blend_stats(result) -> dict:
     """Foot sliding and support-phase conflicts of one blended script (see
     :func:`kinodyn.blend.script.sliding_report`)."""
     from kinodyn import contacts
-    from kinodyn.blend.phases import ERR
+    from kinodyn.phases import ERR
     from kinodyn.blend.script import sliding_report
 
     whole = sliding_report(result)

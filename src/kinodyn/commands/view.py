@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from kinodyn.commands.inputs import add_motion_options, load_motion_or_clip
 from kinodyn.errors import ParameterError
 
 HELP = "write a self-contained HTML viewer (or .glb/.gltf) of motion files or built-in clips"
@@ -19,8 +20,7 @@ _OVERLAYS = ("contacts", "phases", "trajectories")
 def add_input_arguments(p) -> None:
     """Arguments shared by ``view`` and ``render``: inputs and how to read them."""
     p.add_argument("inputs", nargs="+", metavar="FILE", help="motion files (.bvh .amc .npz) or built-in clip names")
-    p.add_argument("--scale", help="input unit (m, cm, mm, inch, cmu) or metres per unit; default: detect")
-    p.add_argument("--up", choices=["y", "z"], help="input up axis (BVH default y)")
+    add_motion_options(p, asf=False)
     p.add_argument("--drop-first", type=int, default=0, metavar="N",
                    help="drop the first N frames of each file (1 for the T-pose frame of CMU BVH conversions)")
     p.add_argument("--keep-tpose", action="store_true",
@@ -35,24 +35,13 @@ def add_input_arguments(p) -> None:
 
 def load_inputs(args) -> list:
     """The motions named by ``args.inputs`` (files first, then built-in clip names)."""
-    from kinodyn.io import load, skip_added_tpose
+    from kinodyn.io import skip_added_tpose
 
     out = []
     for item in args.inputs:
-        p = Path(item)
-        if p.exists():
-            kw = {}
-            if args.scale is not None:
-                from kinodyn.cli import _parse_scale
-
-                kw["scale"] = _parse_scale(args.scale)
-            if args.up and p.suffix.lower() != ".npz":
-                kw["up"] = args.up
-            m = load(p, **kw)
-            if not args.drop_first and not getattr(args, "keep_tpose", False):
-                m = skip_added_tpose(m, item)
-        else:
-            m = _library_clip(item)
+        m = load_motion_or_clip(item, args)
+        if Path(item).exists() and not args.drop_first and not getattr(args, "keep_tpose", False):
+            m = skip_added_tpose(m, item)
         if args.drop_first:
             if args.drop_first < 0:
                 raise ParameterError(f"--drop-first {args.drop_first}: a number of frames >= 0 to drop from {item}")
@@ -62,16 +51,6 @@ def load_inputs(args) -> list:
             m = m[args.drop_first:]
         out.append(m)
     return out
-
-
-def _library_clip(name: str):
-    try:
-        from kinodyn.data import library
-    except ImportError:
-        library = None
-    if library is not None and name in library.names():
-        return library.load(name)
-    raise FileNotFoundError(f"{name}: no such file, and not a built-in clip (kinodyn library list)")
 
 
 def split_list(s: str | None) -> list[str] | None:

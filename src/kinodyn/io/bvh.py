@@ -32,6 +32,7 @@ import numpy as np
 from kinodyn._arrays import median
 from kinodyn.errors import BVHParseError, MotionError, ParameterError, SkeletonError
 from kinodyn.io import _numparse
+from kinodyn.io._bvhheader import MAX_ABS_VALUE, MAX_JOINTS, UINT_RE, Header, parse_hierarchy, parse_number
 from kinodyn.io.atomic import atomic_write_bytes
 from kinodyn.math import quat
 from kinodyn.motion import Motion
@@ -64,17 +65,10 @@ SCALE_RANGE = (1e-9, 1e3)
 _TYPICAL_BODY_SIZE_M = 1.7
 #: Largest frame count accepted in ``Frames:`` (a larger claim is reported as absurd).
 MAX_FRAMES = 50_000_000
-#: Largest number of joints accepted in a hierarchy.
-MAX_JOINTS = 10_000
-#: Largest magnitude accepted for any number in the file (file units or degrees).
-MAX_ABS_VALUE = 1e9
 _MAX_HEADER_BYTES = 16 << 20
 _SNIFF_BYTES = 64 << 10
 _MAX_INDENT = 32
 
-_CHANNEL_RE = re.compile(r"^([XYZxyz])(position|rotation)$", re.IGNORECASE)
-_NUMBER_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
-_UINT_RE = re.compile(r"[0-9]+\Z")
 _MOTION_RE = re.compile(rb"(?m)^[ \t]*MOTION[ \t]*\r?$")
 
 
@@ -104,154 +98,6 @@ class BVHData:
 
 
 # --------------------------------------------------------------------------- reading
-
-
-def _parse_number(tok: str) -> float | None:
-    """``float(tok)`` for a plain decimal (``[+-]digits[.digits][e[+-]digits]``), else None.
-
-    Python's ``float`` also takes ``nan``, ``inf``, ``1_000`` and non-ASCII digits; BVH does not.
-    """
-    if _NUMBER_RE.match(tok) is None:
-        return None
-    return float(tok)
-
-
-class _Header:
-    """A lazy token stream over the hierarchy text, with line numbers and one token of look-ahead."""
-
-    def __init__(self, text: str, path):
-        self.path = path
-        self.last_line = text.count("\n") + 1
-        self._gen = self._tokens(text)
-        self._ahead: tuple[str, int] | None = None
-        self._line = 1
-
-    @staticmethod
-    def _tokens(text: str):
-        for ln, line in enumerate(text.split("\n"), start=1):
-            for tok in line.split():
-                yield tok, ln
-
-    def _fill(self) -> tuple[str, int] | None:
-        if self._ahead is None:
-            self._ahead = next(self._gen, None)
-        return self._ahead
-
-    def err(self, msg: str, line: int | None = None):
-        if line is None:
-            t = self._fill()
-            line = t[1] if t is not None else self.last_line
-        return BVHParseError(msg, self.path, line)
-
-    def next(self, what: str) -> tuple[str, int]:
-        t = self._fill()
-        if t is None:
-            raise self.err(f"unexpected end of the hierarchy, expected {what}", self._line)
-        self._ahead = None
-        self._line = t[1]
-        return t
-
-    def expect(self, word: str, context: str = "") -> int:
-        tok, ln = self.next(repr(word))
-        if tok.upper() != word.upper():
-            raise self.err(f"expected {word!r}{context}, found {tok[:40]!r}", ln)
-        return ln
-
-    def number(self, what: str) -> float:
-        tok, ln = self.next(what)
-        v = _parse_number(tok)
-        if v is None:
-            low = tok.lower().lstrip("+-")
-            kind = "a non-finite value" if low in ("nan", "inf", "infinity") else "text"
-            raise self.err(f"expected a number for {what}, found {kind} {tok[:40]!r}", ln)
-        if abs(v) > MAX_ABS_VALUE:
-            raise self.err(f"{what} is out of range: {tok[:40]!r} (limit {MAX_ABS_VALUE:g})", ln)
-        return v
-
-    def peek(self) -> str | None:
-        t = self._fill()
-        return None if t is None else t[0]
-
-
-def _parse_hierarchy(h: _Header):
-    """Read ``HIERARCHY ROOT ...`` (iteratively: nesting depth is limited only by :data:`MAX_JOINTS`)."""
-    names: list[str] = []
-    name_set: set[str] = set()
-    parents: list[int] = []
-    offsets: list[list[float]] = []
-    channels: list[tuple[str, ...]] = []
-    end_parents: list[int] = []
-    end_offsets: list[list[float]] = []
-
-    def offset(what: str) -> list[float]:
-        h.expect("OFFSET", f" in {what}")
-        return [h.number(f"{what} OFFSET x"), h.number(f"{what} OFFSET y"), h.number(f"{what} OFFSET z")]
-
-    def open_joint(parent: int) -> int:
-        name, ln = h.next("a joint name")
-        if name in ("{", "}"):
-            raise h.err("joint has no name", ln)
-        if name in name_set:
-            raise h.err(f"joint name {name[:40]!r} is used twice", ln)
-        if len(names) >= MAX_JOINTS:
-            raise h.err(f"more than {MAX_JOINTS} joints in the hierarchy", ln)
-        h.expect("{", f" after joint name {name[:40]!r}")
-        idx = len(names)
-        names.append(name)
-        name_set.add(name)
-        parents.append(parent)
-        offsets.append(offset(f"joint {name[:40]!r}"))
-        tok, ln = h.next("CHANNELS")
-        if tok.upper() != "CHANNELS":
-            raise h.err(f"expected 'CHANNELS' for joint {name[:40]!r}, found {tok[:40]!r}", ln)
-        cnt_tok, ln = h.next("a channel count")
-        if not _UINT_RE.match(cnt_tok):
-            raise h.err(f"channel count of joint {name[:40]!r} must be an integer, found {cnt_tok[:40]!r}", ln)
-        cnt = int(cnt_tok) if len(cnt_tok) < 10 else 10 ** 9
-        if cnt not in (0, 3, 6):
-            raise h.err(f"joint {name[:40]!r} declares {cnt_tok[:20]} channels; expected 3 or 6", ln)
-        chans = []
-        for _ in range(cnt):
-            c, cl = h.next("a channel name")
-            if not _CHANNEL_RE.match(c):
-                raise h.err(f"unknown channel {c[:40]!r} on joint {name[:40]!r} (expected e.g. Xposition, Zrotation)",
-                            cl)
-            chans.append(c[0].upper() + c[1:].lower())
-        rot = [c for c in chans if c.endswith("rotation")]
-        pos = [c for c in chans if c.endswith("position")]
-        if len(set(chans)) != len(chans) or len(rot) not in (0, 3) or len(pos) not in (0, 3):
-            raise h.err(f"joint {name[:40]!r} must have three distinct rotation channels (and optionally three "
-                        f"position channels), found {' '.join(chans)}", ln)
-        channels.append(tuple(chans))
-        return idx
-
-    h.expect("HIERARCHY")
-    tok, ln = h.next("ROOT")
-    if tok.upper() != "ROOT":
-        raise h.err(f"expected 'ROOT', found {tok[:40]!r}", ln)
-    stack = [open_joint(-1)]
-    while stack:
-        cur = stack[-1]
-        tok, ln = h.next(f"'JOINT', 'End Site' or '}}' to close joint {names[cur][:40]!r}")
-        up = tok.upper()
-        if up == "}":
-            stack.pop()
-        elif up == "JOINT":
-            stack.append(open_joint(cur))
-        elif up == "END":
-            h.expect("Site", " after 'End'")
-            h.expect("{", " after 'End Site'")
-            end_parents.append(cur)
-            end_offsets.append(offset(f"end site of {names[cur][:40]!r}"))
-            h.expect("}", " to close the end site")
-        else:
-            raise h.err(f"expected 'JOINT', 'End Site' or '}}' inside joint {names[cur][:40]!r}, found {tok[:40]!r}",
-                        ln)
-    if h.peek() is not None and h.peek().upper() == "ROOT":
-        raise h.err("files with more than one ROOT are not supported")
-    if not channels[0]:
-        raise h.err(f"the root joint {names[0][:40]!r} has no channels", 2)
-    return names, parents, offsets, channels, end_parents, end_offsets
 
 
 def _token_at(body: np.ndarray, pos: int) -> str:
@@ -297,6 +143,67 @@ def _snap_frame_time(frame_time: float, token: str) -> float:
     return frame_time
 
 
+def _motion_header(data: bytes, pos: int, motion_line: int, path) -> tuple[int, float, int, int]:
+    """The ``Frames: N`` and ``Frame Time: t`` lines after ``MOTION`` (ending at byte ``pos``): frame count,
+    frame time, the byte where the frame lines start and the line number of the frame-time line."""
+    if data[pos:pos + 1] == b"\n":  # the MOTION line's own end
+        pos += 1
+    lines_seen = motion_line
+    meta = {}
+    for key in ("Frames:", "Frame Time:"):
+        while True:
+            nl = data.find(b"\n", pos)
+            raw = data[pos: len(data) if nl < 0 else nl]
+            pos = len(data) if nl < 0 else nl + 1
+            lines_seen += 1
+            if raw.strip() or nl < 0:
+                break
+        text = raw[:200].decode("utf-8", "replace").strip()
+        if not text.lower().startswith(key.lower()):
+            raise BVHParseError(f"expected {key!r} line, found {text[:40]!r}", path, lines_seen)
+        meta[key] = (text[len(key):].strip(), lines_seen)
+    n_txt, n_line = meta["Frames:"]
+    if not UINT_RE.match(n_txt):
+        raise BVHParseError(f"frame count must be a non-negative integer, found {n_txt[:40]!r}", path, n_line)
+    n_frames = int(n_txt) if len(n_txt) < 12 else MAX_FRAMES + 1
+    if n_frames > MAX_FRAMES:
+        raise BVHParseError(f"frame count {n_txt[:40]} is absurd (limit {MAX_FRAMES})", path, n_line)
+    ft_txt, ft_line = meta["Frame Time:"]
+    frame_time = parse_number(ft_txt)
+    if frame_time is None:
+        raise BVHParseError(f"frame time must be a number, found {ft_txt[:40]!r}", path, ft_line)
+    if not 0 < frame_time <= 10:
+        raise BVHParseError(f"frame time must be a positive number of seconds (at most 10), found {ft_txt!r}",
+                            path, ft_line)
+    frame_time = _snap_frame_time(frame_time, ft_txt)
+    if n_frames == 0:
+        raise BVHParseError("file has no frames ('Frames: 0')", path, n_line)
+    return n_frames, frame_time, pos, lines_seen
+
+
+def _frame_values(data: bytes, pos: int, n_chan: int, n_frames: int, first_data_line: int, path) -> np.ndarray:
+    """``(n_frames, n_chan)`` values of the frame lines starting at byte ``pos`` (compiled parser)."""
+    body = np.frombuffer(data, dtype=np.uint8, offset=pos) if pos < len(data) else np.zeros(0, np.uint8)
+    values, status, rows, bad_line, bad_pos, bad_count = _numparse.parse(body, n_chan, n_frames, MAX_ABS_VALUE)
+    line_no = first_data_line + bad_line
+    if status == _numparse.BAD_TOKEN:
+        tok = _token_at(body, bad_pos)
+        what = "a non-finite value" if tok.lower().lstrip("+-") in ("nan", "inf", "infinity") else "text"
+        raise BVHParseError(f"expected a number, found {what} {tok!r}", path, line_no)
+    if status == _numparse.HUGE:
+        raise BVHParseError(f"value {_token_at(body, bad_pos)!r} is out of range (limit {MAX_ABS_VALUE:g})", path,
+                            line_no)
+    if status == _numparse.BAD_COUNT:
+        raise BVHParseError(f"frame line has {bad_count} values; the hierarchy declares {n_chan} channels",
+                            path, line_no)
+    if status == _numparse.TOO_MANY_LINES:
+        raise BVHParseError(f"more frame lines than the {n_frames} declared in 'Frames:'", path, line_no)
+    if rows < n_frames:
+        raise BVHParseError(f"file is truncated: 'Frames: {n_frames}' but {rows} frame lines found", path,
+                            line_no)
+    return values
+
+
 def parse_bvh(data: bytes, path=None) -> BVHData:
     """Parse the bytes of a BVH file into :class:`BVHData` (file units and axes, no conversion).
 
@@ -316,67 +223,13 @@ def parse_bvh(data: bytes, path=None) -> BVHData:
     except UnicodeDecodeError as e:
         line = data[: e.start].count(b"\n") + 1
         raise BVHParseError("header is not valid UTF-8 text", path, line) from None
-    h = _Header(header.replace("\r", ""), path)
-    names, parents, offsets, channels, end_parents, end_offsets = _parse_hierarchy(h)
+    h = Header(header.replace("\r", ""), path)
+    names, parents, offsets, channels, end_parents, end_offsets = parse_hierarchy(h)
     if h.peek() is not None:
         raise h.err(f"unexpected {h.peek()[:40]!r} after the hierarchy")
     motion_line = data[: m.start()].count(b"\n") + 1
-
-    # "Frames: N" and "Frame Time: t" lines
-    pos = m.end()
-    if data[pos:pos + 1] == b"\n":  # the MOTION line's own end
-        pos += 1
-    lines_seen = motion_line
-    meta = {}
-    for key in ("Frames:", "Frame Time:"):
-        while True:
-            nl = data.find(b"\n", pos)
-            raw = data[pos: len(data) if nl < 0 else nl]
-            pos = len(data) if nl < 0 else nl + 1
-            lines_seen += 1
-            if raw.strip() or nl < 0:
-                break
-        text = raw[:200].decode("utf-8", "replace").strip()
-        if not text.lower().startswith(key.lower()):
-            raise BVHParseError(f"expected {key!r} line, found {text[:40]!r}", path, lines_seen)
-        meta[key] = (text[len(key):].strip(), lines_seen)
-    n_txt, n_line = meta["Frames:"]
-    if not _UINT_RE.match(n_txt):
-        raise BVHParseError(f"frame count must be a non-negative integer, found {n_txt[:40]!r}", path, n_line)
-    n_frames = int(n_txt) if len(n_txt) < 12 else MAX_FRAMES + 1
-    if n_frames > MAX_FRAMES:
-        raise BVHParseError(f"frame count {n_txt[:40]} is absurd (limit {MAX_FRAMES})", path, n_line)
-    ft_txt, ft_line = meta["Frame Time:"]
-    frame_time = _parse_number(ft_txt)
-    if frame_time is None:
-        raise BVHParseError(f"frame time must be a number, found {ft_txt[:40]!r}", path, ft_line)
-    if not 0 < frame_time <= 10:
-        raise BVHParseError(f"frame time must be a positive number of seconds (at most 10), found {ft_txt!r}",
-                            path, ft_line)
-    frame_time = _snap_frame_time(frame_time, ft_txt)
-    if n_frames == 0:
-        raise BVHParseError("file has no frames ('Frames: 0')", path, n_line)
-
-    n_chan = sum(len(c) for c in channels)
-    first_data_line = lines_seen + 1
-    body = np.frombuffer(data, dtype=np.uint8, offset=pos) if pos < len(data) else np.zeros(0, np.uint8)
-    values, status, rows, bad_line, bad_pos, bad_count = _numparse.parse(body, n_chan, n_frames, MAX_ABS_VALUE)
-    line_no = first_data_line + bad_line
-    if status == _numparse.BAD_TOKEN:
-        tok = _token_at(body, bad_pos)
-        what = "a non-finite value" if tok.lower().lstrip("+-") in ("nan", "inf", "infinity") else "text"
-        raise BVHParseError(f"expected a number, found {what} {tok!r}", path, line_no)
-    if status == _numparse.HUGE:
-        raise BVHParseError(f"value {_token_at(body, bad_pos)!r} is out of range (limit {MAX_ABS_VALUE:g})", path,
-                            line_no)
-    if status == _numparse.BAD_COUNT:
-        raise BVHParseError(f"frame line has {bad_count} values; the hierarchy declares {n_chan} channels",
-                            path, line_no)
-    if status == _numparse.TOO_MANY_LINES:
-        raise BVHParseError(f"more frame lines than the {n_frames} declared in 'Frames:'", path, line_no)
-    if rows < n_frames:
-        raise BVHParseError(f"file is truncated: 'Frames: {n_frames}' but {rows} frame lines found", path,
-                            line_no)
+    n_frames, frame_time, pos, lines_seen = _motion_header(data, m.end(), motion_line, path)
+    values = _frame_values(data, pos, sum(len(c) for c in channels), n_frames, lines_seen + 1, path)
     return BVHData(tuple(names), np.array(parents, dtype=np.int64),
                    np.array(offsets, dtype=np.float64).reshape(-1, 3), tuple(channels),
                    np.array(end_parents, dtype=np.int64), np.array(end_offsets, dtype=np.float64).reshape(-1, 3),
@@ -577,20 +430,7 @@ def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order:
     if not 0 <= precision <= 17:
         raise ParameterError(f"precision must be between 0 and 17 decimals, got {precision}")
     sk = motion.skeleton
-    for n in sk.names:
-        if not n or any(ch.isspace() for ch in n) or n in ("{", "}"):
-            raise ParameterError(f"joint name {n!r} cannot be written to BVH (empty or contains whitespace)")
-    children = [[] for _ in sk.names]
-    for j in range(1, sk.num_joints):
-        children[sk.parents[j]].append(j)
-    dfs, stack = [], [0]
-    while stack:
-        j = stack.pop()
-        dfs.append(j)
-        stack.extend(reversed(children[j]))
-    if dfs != list(range(sk.num_joints)):
-        raise ParameterError("skeleton joints are not in depth-first order; BVH needs parents listed before "
-                             "their children and each subtree contiguous")
+    children = _writable_children(sk)
     inv = 1.0 / scale
     offsets = sk.offsets * inv
     end_offsets = sk.end_offsets * inv
@@ -608,6 +448,35 @@ def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order:
     euler = np.rad2deg(quat.to_euler(q, order))  # (F, J, 3)
     rot_names = " ".join(f"{a.upper()}rotation" for a in order)
     six = trans is not None
+    lines = _hierarchy_lines(sk, children, offsets, end_offsets, rot_names, six, precision)
+    lines.append("MOTION")
+    lines.append(f"Frames: {motion.num_frames}")
+    lines.append(f"Frame Time: {1.0 / motion.fps:.10f}")
+    return "\n".join(lines) + "\n" + _frame_lines(root, trans, euler, precision) + "\n"
+
+
+def _writable_children(sk: Skeleton) -> list[list[int]]:
+    """Children of every joint, after checking the names and the depth-first order BVH needs."""
+    for n in sk.names:
+        if not n or any(ch.isspace() for ch in n) or n in ("{", "}"):
+            raise ParameterError(f"joint name {n!r} cannot be written to BVH (empty or contains whitespace)")
+    children = [[] for _ in sk.names]
+    for j in range(1, sk.num_joints):
+        children[sk.parents[j]].append(j)
+    dfs, stack = [], [0]
+    while stack:
+        j = stack.pop()
+        dfs.append(j)
+        stack.extend(reversed(children[j]))
+    if dfs != list(range(sk.num_joints)):
+        raise ParameterError("skeleton joints are not in depth-first order; BVH needs parents listed before "
+                             "their children and each subtree contiguous")
+    return children
+
+
+def _hierarchy_lines(sk: Skeleton, children, offsets, end_offsets, rot_names: str, six: bool,
+                     precision: int) -> list[str]:
+    """The ``HIERARCHY`` lines: offsets ``(J, 3)``, end offsets ``(E, 3)`` in written units and axes."""
     ends = [[] for _ in sk.names]
     for e, p in enumerate(sk.end_parents):
         ends[p].append(e)
@@ -642,22 +511,24 @@ def to_bvh_text(motion: Motion, scale: float | str = "cm", up: str = "y", order:
         todo.append(("close", j, depth))
         for k in reversed(children[j]):
             todo.append(("open", k, depth + 1))
-    lines.append("MOTION")
-    lines.append(f"Frames: {motion.num_frames}")
-    lines.append(f"Frame Time: {1.0 / motion.fps:.10f}")
-    f = motion.num_frames
+    return lines
+
+
+def _frame_lines(root, trans, euler, precision: int) -> str:
+    """The frame lines: root positions ``(F, 3)``, joint translations ``(F, J, 3)`` or None, Euler
+    angles ``(F, J, 3)`` in degrees, each joint's channels in the hierarchy's order."""
+    f, num_joints = euler.shape[:2]
     cols = []
-    for j in range(sk.num_joints):
+    for j in range(num_joints):
         if j == 0:
             cols.append(root)
-        elif six:
+        elif trans is not None:
             cols.append(trans[:, j])
         cols.append(euler[:, j])
     table = np.concatenate(cols, axis=1) if f else np.zeros((0, 1))
     table = np.where(np.abs(table) < 0.5 * 10.0 ** -precision, 0.0, table)  # no "-0.000000"
     row = " ".join([f"%.{precision}f"] * table.shape[1])
-    body = "\n".join(row % tuple(r) for r in table.tolist())
-    return "\n".join(lines) + "\n" + body + "\n"
+    return "\n".join(row % tuple(r) for r in table.tolist())
 
 
 def write_bvh(path, motion: Motion, scale: float | str = "cm", up: str = "y", order: str = "zyx",

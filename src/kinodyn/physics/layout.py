@@ -11,10 +11,9 @@ Shapes: ``J`` skeleton joints, ``B`` kept segments; ``pos (J, 3)`` rest position
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
+from kinodyn import roles
 from kinodyn.errors import SkeletonError, UnknownNameError
 from kinodyn.skeleton import Skeleton
 
@@ -30,8 +29,6 @@ __all__ = [
     "structural_classes",
 ]
 
-_FINGER = re.compile(r"finger|thumb|index|middle|ring|pinky|hand.*\d|^[lr]hand$", re.IGNORECASE)
-_END = re.compile(r"(_end|end|nub|site|tip)$", re.IGNORECASE)
 LIMIT_CLASS = {"thigh": "thigh", "knee": "shin", "ankle": "foot", "toe": "toe", "clavicle": "clavicle",
                 "shoulder": "clavicle", "upper_arm": "upperarm", "forearm": "forearm", "wrist": "hand",
                 "neck": "neck", "head": "head", "spine": "spine", "finger": "hand", "hip_joint": "pelvis"}
@@ -42,9 +39,7 @@ ERR_ZERO_BONE = ("joint {name!r} has a zero-length bone ({mm:.2f} mm from its pa
 
 def joint_side(skeleton: Skeleton, j: int, pos: np.ndarray) -> str:
     """``"left"``, ``"right"`` or ``""`` for joint ``j``: from its name, else from its rest ``y``."""
-    from kinodyn.contacts import name_side
-
-    s = name_side(skeleton.names[j])
+    s = roles.side_of(skeleton.names[j])
     if s:
         return s
     y = pos[j, 1]
@@ -74,11 +69,11 @@ def merge_plan(skeleton: Skeleton, lims, cfg) -> tuple[np.ndarray, list[str]]:
         p = skeleton.parents[j]
         if lims[j].kind == "fixed":
             kept[j], reason[j] = False, "fixed joint"
-        elif _FINGER.search(name) and lims[j].name == "finger":
+        elif roles.has_role(name, "finger") and lims[j].name == "finger":
             kept[j], reason[j] = False, "finger"
         elif cfg.merge_toes and j in toe_joints:
             kept[j], reason[j] = False, "toe (the foot box covers it)"
-        elif _END.search(name) and nkids[j] == 0:
+        elif roles.has_role(name, "end_site") and nkids[j] == 0:
             kept[j], reason[j] = False, "end joint"
         elif bone[j] < cfg.min_bone:
             kids = np.nonzero(skeleton.parents == j)[0]

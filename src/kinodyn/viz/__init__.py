@@ -2,10 +2,11 @@
 
 - :mod:`kinodyn.viz.html`: ``write(path, motions, overlays=...)``, one offline HTML page (three.js).
 - :mod:`kinodyn.viz.render`: MP4/GIF/PNG rendered offscreen on the CPU with MuJoCo (OSMesa).
-- :mod:`kinodyn.viz.plots`: matplotlib building blocks (phase timelines, error surfaces, scatter maps).
 - :mod:`kinodyn.viz.gltf`: glTF 2.0 export of a skeleton animation.
 - :mod:`kinodyn.viz.world`: what a page or a video shows (characters and overlays), shared by both.
-- :mod:`kinodyn.viz.style`: the colours every picture shares.
+
+Plots and the colours every picture shares live lower, in :mod:`kinodyn.plotting`, so every capability
+may draw its figures without depending on the viewer.
 
 Submodules are imported on demand (``from kinodyn.viz import html``); nothing here imports matplotlib,
 MuJoCo or pygltflib at import time.

@@ -97,7 +97,8 @@ def part_scenes(out: Path) -> tuple[list, list[str]]:
 def demo(out: Path) -> list[str]:
     from kinodyn import contacts
     from kinodyn.data import library
-    from kinodyn.viz import html, plots
+    from kinodyn import plotting as plots
+    from kinodyn.viz import html
     from kinodyn.viz.gltf import write_gltf
     from kinodyn.viz.render import RenderConfig, render
 

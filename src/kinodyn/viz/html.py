@@ -34,7 +34,7 @@ import numpy as np
 
 from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_write_bytes
-from kinodyn.viz import style
+from kinodyn.plotting import style
 from kinodyn.viz.world import Actor, Contacts, Impact, Phases, Trajectory, World, build_world
 
 __all__ = [
@@ -238,7 +238,7 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
     }
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     script = script.replace("</script", "<\\/script")
-    from kinodyn import __version__
+    from kinodyn.version import __version__
 
     head, rest = template.split("{{DATA}}")
     rest_a, rest_b = rest.split("{{SCRIPT}}")

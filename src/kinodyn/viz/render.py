@@ -25,7 +25,7 @@ from kinodyn.errors import ParameterError
 from kinodyn.io.atomic import atomic_path
 from kinodyn.physics import render as gl
 from kinodyn.physics.render import RendererUnavailableError, available, gl_backend
-from kinodyn.viz import style
+from kinodyn.plotting import style
 from kinodyn.viz.world import World, build_world
 
 __all__ = [

@@ -17,7 +17,6 @@ the floor), or objects: :class:`Contacts`, :class:`Impact`, :class:`Phases`, :cl
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -26,7 +25,9 @@ import numpy as np
 from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.kinematics import end_site_positions, forward_kinematics
 from kinodyn.motion import Motion
-from kinodyn.viz import style
+from kinodyn.phases import contact_spans
+from kinodyn.plotting import style
+from kinodyn.roles import bone_role
 
 __all__ = [
     "LAYOUTS",
@@ -80,7 +81,7 @@ class Impact:
         impulse: ``(3,)`` impulse vector (N s); the arrow points along it and ends at ``point``.
         character: index of the character hit, if any.
         label: text for legends.
-        color: arrow colour (default :data:`kinodyn.viz.style.IMPACT_COLOR`).
+        color: arrow colour (default :data:`kinodyn.plotting.style.IMPACT_COLOR`).
     """
 
     time: float
@@ -112,7 +113,7 @@ class Phases:
         spans: ``(start_s, stop_s, label)`` triples in scene time.
         label: the bar's title.
         character: index of the character it belongs to (for colouring), if any.
-        colors: label -> colour; labels not listed use :data:`kinodyn.viz.style.PHASE_COLORS`, then grey.
+        colors: label -> colour; labels not listed use :data:`kinodyn.plotting.style.PHASE_COLORS`, then grey.
     """
 
     spans: Sequence[tuple[float, float, str]]
@@ -221,25 +222,10 @@ class World:
 
 # --------------------------------------------------------------------------- bodies
 
-# (pattern on the lower-cased name of the bone's child point, radius in metres for a 1.75 m body).
-# The bone ending at a joint is named by that joint: the bone ending at "LeftLeg" is the thigh.
-_RADIUS_RULES = (
-    (r"head.*_end$", 0.095),                       # the head itself (Head -> its end site)
-    (r"(finger|thumb|index|middle|ring|pinky|hand.*_end|wrist.*_end|fingers)", 0.026),
-    (r"head", 0.05),                               # the neck (Neck -> Head)
-    (r"neck", 0.075),
-    (r"(forearm|elbow|radius|lowerarm)", 0.045),   # upper arm
-    (r"(arm|humerus)", 0.05),                      # shoulder
-    (r"(shoulder|clavicle|collar)", 0.05),
-    (r"(hand|wrist)", 0.037),                      # forearm
-    (r"(spine|chest|back|thorax|torso|abdomen|pelvis|waist)", 0.1),
-    (r"(upleg|thigh|femur|hip)", 0.075),           # pelvis
-    (r"toe.*_end$", 0.03),
-    (r"(toe|ball)", 0.042),                        # foot
-    (r"(foot|ankle)", 0.05),                       # shin
-    (r"(leg|knee|tibia|shin|calf)", 0.065),        # thigh
-)
-_RULES = tuple((re.compile(p), r) for p, r in _RADIUS_RULES)
+#: Capsule radius in metres for a 1.75 m body of each bone role (:data:`kinodyn.roles.BONE_ROLES`).
+_BONE_RADII = {"head": 0.095, "hand": 0.026, "neck": 0.05, "neck_base": 0.075, "upper_arm": 0.045,
+               "shoulder": 0.05, "clavicle": 0.05, "forearm": 0.037, "trunk": 0.1, "pelvis": 0.075,
+               "toe": 0.03, "foot": 0.042, "shin": 0.05, "thigh": 0.065}
 
 
 def bone_radii(names: Sequence[str], parents: np.ndarray, height: float) -> np.ndarray:
@@ -254,11 +240,7 @@ def bone_radii(names: Sequence[str], parents: np.ndarray, height: float) -> np.n
         if parents[p] < 0:
             continue
         n = name.lower()
-        r = 0.04
-        for pat, rad in _RULES:
-            if pat.search(n):
-                r = rad
-                break
+        r = _BONE_RADII.get(bone_role(name), 0.04)
         if r == 0.075 and "neck" in n and "neck" in names[parents[p]].lower():
             r = 0.05  # a second neck segment
         out[p] = r * s
@@ -296,17 +278,7 @@ def support_phases(labels: np.ndarray, fps: float, start: float = 0.0) -> list[t
         ``(t0, t1, label)`` spans covering ``[start, start + F / fps]``, labels ``LS`` (left foot only),
         ``RS`` (right only), ``DS`` (both), ``flight`` (none); consecutive equal labels merged.
     """
-    labels = np.asarray(labels, dtype=bool)
-    if labels.ndim != 2 or labels.shape[1] != 2:
-        raise ParameterError(f"labels must have shape (F, 2), got {labels.shape}")
-    code = labels[:, 0].astype(np.int8) + 2 * labels[:, 1].astype(np.int8)
-    names = ("flight", "LS", "RS", "DS")
-    if len(code) == 0:
-        return []
-    cut = np.nonzero(np.diff(code))[0] + 1
-    a = np.concatenate([[0], cut])
-    b = np.concatenate([cut, [len(code)]])
-    return [(start + i / fps, start + j / fps, names[code[i]]) for i, j in zip(a, b)]
+    return contact_spans(labels, fps, start, style.PHASE_LABELS)
 
 
 # --------------------------------------------------------------------------- building
@@ -349,17 +321,13 @@ def _actors(motions, names, colors) -> list[Actor]:
 
 def _feet_points(motion: Motion) -> dict[str, np.ndarray]:
     from kinodyn.contacts import find_feet
+    from kinodyn.roles import foot_point_indices
 
-    sk = motion.skeleton
     try:
-        feet = find_feet(sk)
+        feet = find_feet(motion.skeleton)
     except KinodynError:
         return {}
-    out = {}
-    for side, idx in feet.items():
-        ends = np.nonzero(np.isin(sk.end_parents, idx))[0] + sk.num_joints
-        out[side] = np.concatenate([idx, ends]).astype(np.int64)
-    return out
+    return foot_point_indices(motion.skeleton, feet)
 
 
 def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> list[np.ndarray]:
@@ -398,25 +366,8 @@ def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> l
     return out
 
 
-def build_world(motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
-                name: str = "") -> World:
-    """Prepare characters and overlays for drawing.
-
-    Args:
-        motions: see the module docstring.
-        overlays: overlay names (:data:`OVERLAY_NAMES`) and overlay objects; ``None`` for none.
-        names: one label per character (overrides motion and actor names).
-        colors: one colour per character (``None`` entries take the palette).
-        layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
-            root position moved to its slot) or ``"grid"`` (rows and columns); for clip galleries.
-        name: scene name.
-
-    Raises:
-        ParameterError: unknown overlay or layout, wrong shapes, bad character indices.
-    """
-    if layout not in LAYOUTS:
-        raise ParameterError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
-    actors = _actors(motions, names, colors)
+def _sort_overlays(overlays):
+    """Overlay names and objects sorted by kind: ``(wanted, auto, impacts, phases, trajectories, contacts)``."""
     overlays = () if overlays is None else ([overlays] if isinstance(overlays, (str, Impact, Contacts, Phases,
                                                                                  Trajectory)) else list(overlays))
     wanted = set()  # overlays switched on in the viewer
@@ -450,6 +401,29 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
             wanted.add("trajectories")
         else:
             raise ParameterError(f"overlays must be names or overlay objects, got {type(ov).__name__}")
+    return wanted, auto, impacts, phases, trajs, contacts
+
+
+def build_world(motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
+                name: str = "") -> World:
+    """Prepare characters and overlays for drawing.
+
+    Args:
+        motions: see the module docstring.
+        overlays: overlay names (:data:`OVERLAY_NAMES`) and overlay objects; ``None`` for none.
+        names: one label per character (overrides motion and actor names).
+        colors: one colour per character (``None`` entries take the palette).
+        layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
+            root position moved to its slot) or ``"grid"`` (rows and columns); for clip galleries.
+        name: scene name.
+
+    Raises:
+        ParameterError: unknown overlay or layout, wrong shapes, bad character indices.
+    """
+    if layout not in LAYOUTS:
+        raise ParameterError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    actors = _actors(motions, names, colors)
+    wanted, auto, impacts, phases, trajs, contacts = _sort_overlays(overlays)
     if impacts:
         wanted.add("impacts")
     n = len(actors)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from kinodyn.commands.inputs import add_motion_options, motion_kwargs
 from kinodyn.errors import KinodynError, UnknownNameError
 
 HELP = "write the MuJoCo body (MJCF) of a skeleton: kinodyn body FILE.bvh -o body.xml"
@@ -23,8 +24,7 @@ def add_arguments(p) -> None:
     p.add_argument("--root", choices=["free", "fixed"], default="free", help="free root joint or fixed root")
     p.add_argument("--merge-toes", action="store_true", help="one box per foot, toes merged into it")
     p.add_argument("--no-self-collision", action="store_true", help="segments of the body do not collide")
-    p.add_argument("--scale", help="input unit (m, cm, mm, inch, cmu) or metres per unit; default: detect")
-    p.add_argument("--up", choices=["y", "z"], help="input up axis (BVH default y)")
+    add_motion_options(p, asf=False)
     p.add_argument("-v", "--verbose", action="store_true", help="print the segment table")
 
 
@@ -34,14 +34,7 @@ def load_skeleton(source: str, scale=None, up=None):
     if path.exists():
         from kinodyn.io import load
 
-        kw = {}
-        if scale is not None:
-            from kinodyn.cli import _parse_scale
-
-            kw["scale"] = _parse_scale(scale)
-        if up is not None and path.suffix.lower() != ".npz":
-            kw["up"] = up
-        return load(path, **kw).skeleton
+        return load(path, **motion_kwargs(path, scale, up)).skeleton
     from kinodyn.data import library
     from kinodyn.data.skeleton import humanoid
 

@@ -1,4 +1,4 @@
-"""kinodyn.viz.plots: the plotting building blocks write PNG and SVG in one style."""
+"""kinodyn.plotting: the plotting building blocks write PNG and SVG in one style."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import pytest
 from kinodyn import contacts
 from kinodyn.data import library
 from kinodyn.errors import ParameterError
-from kinodyn.viz import plots, style
+from kinodyn import plotting as plots
+from kinodyn.plotting import style
 
 pytest.importorskip("matplotlib")
 
@@ -90,3 +91,15 @@ def test_style_colours():
     with pytest.raises(ParameterError, match="colour must be"):
         style.color("reddish")
     assert style.character_colors(3, [None, "#000000", None]) == [style.PALETTE[0], "#000000", style.PALETTE[2]]
+
+
+def test_write_figure_uses_the_savefig_settings_given(tmp_path):
+    plt = plots.pyplot()
+    fig, ax = plt.subplots(figsize=(2, 1))
+    ax.plot([0, 1], [0, 1])
+    small = plots.write_figure(fig, tmp_path / "a.png", dpi=50)
+    big = plots.write_figure(fig, tmp_path / "b.png", dpi=200)
+    plt.close(fig)
+    assert small.read_bytes()[:8] == big.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert big.stat().st_size > 2 * small.stat().st_size
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png"]  # no temporary left behind

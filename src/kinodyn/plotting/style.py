@@ -19,6 +19,7 @@ __all__ = [
     "IMPACT_COLOR",
     "PALETTE",
     "PHASE_COLORS",
+    "PHASE_LABELS",
     "character_colors",
     "color",
     "rgb",
@@ -31,6 +32,8 @@ PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b
 
 #: Support-phase colours (labels of the support-phase sequence).
 PHASE_COLORS = {"LS": "#59a14f", "RS": "#f28e2b", "DS": "#4e79a7", "flight": "#c9ced6", "Err": "#e15759"}
+#: Label of each support-phase code (:class:`kinodyn.phases.Phase`) in the bars coloured by :data:`PHASE_COLORS`.
+PHASE_LABELS = {0b000: "DS", 0b001: "RS", 0b010: "LS", 0b011: "Err", 0b111: "flight"}
 
 CONTACT_COLOR = "#f2b705"  #: foot-contact markers
 IMPACT_COLOR = "#d62728"  #: impact points and impulse arrows

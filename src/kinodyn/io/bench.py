@@ -112,7 +112,7 @@ def find_mocap() -> Path | None:
     cands = []
     here = Path(__file__).resolve()
     if len(here.parents) > 3:
-        cands.append(here.parents[3] / ".." / "shared" / "mocap")  # src/kinodyn/bench/io.py -> repo/..
+        cands.append(here.parents[3] / ".." / "shared" / "mocap")  # src/kinodyn/io/bench.py -> repo/..
     cands.append(Path.cwd() / ".." / "shared" / "mocap")
     for c in cands:
         if c.is_dir():

@@ -17,6 +17,9 @@ are marked; when a cyclic clip starts and ends in the same phase the two pieces 
 straddles the loop point (its start is negative). Extension (4.3): a cyclic sequence repeats whole;
 any other sequence repeats its last element as long as needed.
 
+The one encoding of support phases in kinodyn is :class:`Phase`; figures, the viewer and videos draw
+them with :data:`PHASE_COLORS` and show them as time spans from :func:`time_spans`.
+
 Units: seconds. Shapes: ``K`` elements, ``F`` frames.
 """
 
@@ -35,6 +38,7 @@ __all__ = [
     "FLIGHT",
     "LS",
     "PHASES",
+    "PHASE_COLORS",
     "RS",
     "SUPPORT_PHASES",
     "Phase",
@@ -43,12 +47,14 @@ __all__ = [
     "combine",
     "combine_all",
     "compatible",
+    "contact_spans",
     "frame_phases",
     "from_labels",
     "from_motion",
     "opposite",
     "phase_name",
     "runs",
+    "time_spans",
 ]
 
 
@@ -68,6 +74,9 @@ PHASES = (RS, LS, DS, FLIGHT, ERR)
 #: The elements a clip's sequence is made of.
 SUPPORT_PHASES = (RS, LS, DS, FLIGHT)
 _NAMES = {int(p): p.name for p in Phase}
+#: Colour of each phase code in every picture (``"#rrggbb"``).
+PHASE_COLORS = {int(RS): "#d62728", int(LS): "#1f77b4", int(DS): "#7f7f7f", int(FLIGHT): "#f2c14e",
+                int(ERR): "#000000"}
 
 
 def phase_name(p) -> str:
@@ -137,6 +146,45 @@ def runs(codes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     starts = np.concatenate([[0], cut])
     stops = np.concatenate([cut, [len(c)]])
     return c[starts], starts, stops
+
+
+def contact_spans(labels, fps: float, start: float = 0.0, names=None) -> list[tuple[float, float, str]]:
+    """Support-phase spans ``(t0, t1, name)`` from foot contacts, consecutive equal phases merged.
+
+    Args:
+        labels: ``(F, 2)`` bool contacts, columns left and right.
+        fps: their frame rate; frame ``k`` covers ``[start + k / fps, start + (k + 1) / fps)``.
+        start: time of frame 0 (s).
+        names: phase code -> name shown (default :func:`phase_name`).
+    """
+    labels = np.asarray(labels, dtype=bool)
+    if labels.ndim != 2 or labels.shape[1] != 2:
+        raise ParameterError(f"labels must have shape (F, 2), got {labels.shape}")
+    codes = frame_phases(labels[:, 0], labels[:, 1])
+    frames = np.arange(len(codes) + 1)
+    spans = time_spans(codes, start + frames[:-1] / fps, start + frames[1:] / fps)
+    name = phase_name if names is None else names.__getitem__
+    return [(a, b, name(c)) for a, b, c in spans]
+
+
+def time_spans(codes, begin, end, valid=None) -> list[tuple[float, float, int]]:
+    """Runs of equal ``codes (F,)`` as time spans ``(t0, t1, code)``.
+
+    Frame ``k`` covers ``[begin[k], end[k])`` (both ``(F,)``, seconds); a run of frames ``i..j`` gives
+    ``(begin[i], end[j], code)``. Frames where ``valid (F,)`` bool is False are left out and split runs.
+    """
+    c = np.asarray(codes)
+    v = np.ones(len(c), dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    if v.shape != c.shape or c.ndim != 1:
+        raise ParameterError(f"codes and valid must be equal (F,) arrays, got {c.shape} and {v.shape}")
+    if len(c) == 0:
+        return []
+    cut = np.nonzero((c[1:] != c[:-1]) | (v[1:] != v[:-1]))[0] + 1
+    starts = np.concatenate([[0], cut])
+    stops = np.concatenate([cut, [len(c)]])
+    b = np.asarray(begin, dtype=np.float64)
+    e = np.asarray(end, dtype=np.float64)
+    return [(float(b[i]), float(e[j - 1]), int(c[i])) for i, j in zip(starts, stops) if v[i]]
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kinodyn.blend import phases as P
-from kinodyn.blend.phases import DS, ERR, FLIGHT, LS, RS
+from kinodyn import phases as P
+from kinodyn.phases import DS, ERR, FLIGHT, LS, RS
 from kinodyn.errors import ParameterError
 
 _TOL = 1e-9
@@ -207,3 +207,23 @@ def test_left_share_of_a_cyclic_sequence_wraps_and_is_continuous():
     assert np.abs(np.diff(share)).max() < 0.011   # linear ramps of 0.1 s sampled every 1 ms
     np.testing.assert_allclose(seq.left_share(t + seq.total), share, atol=1e-9)
     assert seq.left_share(0.0) == pytest.approx(0.5)   # middle of the DS from RS to LS (it straddles 0)
+
+
+def test_time_spans_merge_equal_codes_and_leave_out_invalid_frames():
+    codes = np.array([RS, RS, LS, LS, LS, DS, DS], dtype=np.int8)
+    begin = np.arange(7) * 0.1
+    end = begin + 0.1
+    assert P.time_spans(codes, begin, end) == [(0.0, begin[1] + 0.1, int(RS)), (0.2, begin[4] + 0.1, int(LS)),
+                                               (0.5, begin[6] + 0.1, int(DS))]
+    valid = np.array([1, 1, 1, 0, 1, 1, 1], dtype=bool)  # an invalid frame splits the LS run
+    got = P.time_spans(codes, begin, end, valid)
+    assert [(round(a, 9), round(b, 9), c) for a, b, c in got] == [(0.0, 0.2, int(RS)), (0.2, 0.3, int(LS)),
+                                                                   (0.4, 0.5, int(LS)), (0.5, 0.7, int(DS))]
+    assert P.time_spans(codes[:0], begin[:0], end[:0]) == []
+    with pytest.raises(ParameterError, match="equal"):
+        P.time_spans(codes, begin, end, valid[:3])
+
+
+def test_every_phase_has_one_colour():
+    assert set(P.PHASE_COLORS) == {int(p) for p in P.PHASES}
+    assert len(set(P.PHASE_COLORS.values())) == len(P.PHASES)

@@ -7,10 +7,13 @@
 * :func:`scatter_map`: 2-D points (an embedding of scenes, crowd positions) coloured by value or
   category, with highlighted points ringed and labelled.
 * :func:`time_series`: curves over time with optional shaded spans.
-* :func:`save`: one figure to PNG and SVG at once, atomically.
+* :func:`save`: one figure to PNG and SVG at once, atomically; :func:`write_figure` one file with
+  explicit ``savefig`` settings (for figures drawn in their own style); :func:`pyplot` for figures
+  made with pyplot, without a display.
 
 Every function returns a :class:`matplotlib.figure.Figure` made without pyplot (no global state, no
-display needed) or draws into the ``ax`` it is given. Colours come from :mod:`kinodyn.viz.style`.
+display needed) or draws into the ``ax`` it is given. Colours come from :mod:`kinodyn.plotting.style`;
+support phases are drawn in the colours of :data:`kinodyn.phases.PHASE_COLORS`.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import numpy as np
 
 from kinodyn.errors import ParameterError
 from kinodyn.io.atomic import atomic_path
-from kinodyn.viz import style
+from kinodyn.plotting import style
 
 __all__ = [
     "PLOT_FORMATS",
@@ -31,10 +34,12 @@ __all__ = [
     "error_surface",
     "figure",
     "phase_timeline",
+    "pyplot",
     "save",
     "scatter_map",
     "support_bars",
     "time_series",
+    "write_figure",
 ]
 
 PLOT_FORMATS = ("png", "svg")
@@ -129,9 +134,9 @@ def support_bars(contacts: Mapping[str, np.ndarray], fps: float, **kw):
 
     Keyword arguments go to :func:`phase_timeline`.
     """
-    from kinodyn.viz.world import support_phases
+    from kinodyn.phases import contact_spans
 
-    tracks = [(name, support_phases(np.asarray(lab), fps)) for name, lab in contacts.items()]
+    tracks = [(name, contact_spans(lab, fps, names=style.PHASE_LABELS)) for name, lab in contacts.items()]
     kw.setdefault("title", "support phases")
     return phase_timeline(tracks, **kw)
 
@@ -274,11 +279,23 @@ def save(fig, path, formats: Sequence[str] = PLOT_FORMATS) -> list[Path]:
     bad = [f for f in formats if f not in PLOT_FORMATS]
     if bad:
         raise ParameterError(f"plot formats must be among {', '.join(PLOT_FORMATS)}, got {bad[0]!r}")
-    out = []
     with _style():
-        for f in formats:
-            target = p.with_name(p.name + "." + f)
-            with atomic_path(target, suffix="." + f) as tmp:
-                fig.savefig(tmp, format=f)
-            out.append(target)
-    return out
+        return [write_figure(fig, p.with_name(p.name + "." + f), format=f) for f in formats]
+
+
+def write_figure(fig, path, **savefig) -> Path:
+    """Write ``fig`` to ``path`` atomically with ``fig.savefig(..., **savefig)``; returns the path."""
+    path = Path(path)
+    with atomic_path(path, suffix=path.suffix) as tmp:
+        fig.savefig(tmp, **savefig)
+    return path
+
+
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (no display needed), for figures drawn with pyplot."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
