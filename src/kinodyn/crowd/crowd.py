@@ -175,7 +175,8 @@ class Crowd:
         self.side_weight = np.zeros(n)
         self.posing = pose
         j = self.keyframes.key_rot.shape[1]
-        self.local_rot, self.root_pos = np.empty((n, j, 4)), np.empty((n, 3))
+        self.local_rot, self.root_pos = np.zeros((n, j, 4)), np.zeros((n, 3))
+        self.local_rot[..., 0] = 1.0
         self._points = np.zeros((n, 4))
         self._v_target = np.zeros((n, 2))
         self._pushes = _Pushes()
