@@ -18,6 +18,7 @@ radians, newtons, kilograms; world Z up.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -182,6 +183,9 @@ class Crowd:
         self._pushes = _Pushes()
         self._next_ball = 0
         self._record: list | None = None
+        #: CPU seconds of this thread spent in each part of :meth:`step` (behaviours and control,
+        #: MuJoCo, posing), accumulated; reset it to measure a stretch.
+        self.timings = {"control": 0.0, "physics": 0.0, "posing": 0.0}
         self.state = rigid_state(self._qpos, self._qvel)
         if pose:
             self._pose()
@@ -240,7 +244,9 @@ class Crowd:
         import mujoco
 
         body, cfg = self.body, self.config
+        tm = self.timings
         for _ in range(int(frames)):
+            t0 = time.thread_time()
             s = self.state
             on_floor = s.r[:, 2] < support_height(body, s.theta_x, s.theta_z) + cfg.on_floor_margin
             v, h = decide(self.ai, s, self.ai_config, self.dt)
@@ -249,7 +255,9 @@ class Crowd:
             self._xfrc[:, :3] = f
             self._xfrc[:, 3:] = t
             self._apply_pushes()
+            t1 = time.thread_time()
             mujoco.mj_step(self.model, self.data, nstep=cfg.substeps)
+            t2 = time.thread_time()
             self.time += self.dt
             self.frame += 1
             self.state = s = rigid_state(self._qpos, self._qvel)
@@ -258,8 +266,13 @@ class Crowd:
                 bad = int(np.flatnonzero(~np.all(np.isfinite(self._qpos), axis=1))[0])
                 raise SimulationDivergedError(f"character {bad} diverged at frame {self.frame}",
                                               step=self.frame, body=str(bad))
+            t3 = time.thread_time()
             if self.posing:
                 self._pose()
+            t4 = time.thread_time()
+            tm["control"] += (t1 - t0) + (t3 - t2)
+            tm["physics"] += t2 - t1
+            tm["posing"] += t4 - t3
             if self._record is not None:
                 self._record.append((self.root_pos.astype(np.float32), self.local_rot.astype(np.float32),
                                      self.control_state.mode.astype(np.int8), self._qpos.astype(np.float32)))
