@@ -144,9 +144,9 @@ def impacts_experiment(args, out: Path) -> list[str]:
 
     ks = _keyframes(args)
     labels = ex.experiment()
-    shown = ex.runimpacts_experiment(labels, args.seed, keyframes=ks)
-    train = [ex.runimpacts_experiment(labels, args.seed + 1 + s, keyframes=ks) for s in range(args.train_seeds)]
-    test = [ex.runimpacts_experiment(labels, args.seed + 1000 + s, keyframes=ks) for s in range(args.test_seeds)]
+    shown = ex.run_impacts(labels, args.seed, keyframes=ks)
+    train = [ex.run_impacts(labels, args.seed + 1 + s, keyframes=ks) for s in range(args.train_seeds)]
+    test = [ex.run_impacts(labels, args.seed + 1000 + s, keyframes=ks) for s in range(args.test_seeds)]
     sk = ks.skeleton if ks is not None else _builtin().skeleton
     table = ex.evaluate_observer(train, test, sk)
     with atomic_path(out / "reactions.npz", suffix=".npz") as tmp:
