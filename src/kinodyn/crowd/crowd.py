@@ -52,7 +52,7 @@ class CrowdConfig:
     """
 
     fps: float = 60.0
-    substeps: int = 2
+    substeps: int = 1
     balls: int = 4
     ball_radius: float = 0.11
     ball_mass: float = 1.0
