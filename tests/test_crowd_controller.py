@@ -4,8 +4,15 @@ import numpy as np
 import pytest
 
 from kinodyn.crowd.body import BodyConfig
-from kinodyn.crowd.controller import (BALANCE, BRAKING, FALLING, LYING, STANDING_UP, ControllerConfig,
-                                      lqr_gains)
+from kinodyn.crowd.controller import (
+    BALANCE,
+    BRAKING,
+    FALLING,
+    LYING,
+    STANDING_UP,
+    ControllerConfig,
+    lqr_gains,
+)
 from kinodyn.crowd.crowd import Crowd, CrowdConfig
 from kinodyn.errors import ParameterError
 

@@ -5,8 +5,14 @@ import pytest
 
 from kinodyn.crowd.body import BodyConfig
 from kinodyn.crowd.controller import FALLING
-from kinodyn.crowd.impacts import (ImpactConfig, evaluate_observer, experiment, features, force_geometry,
-                                   run_impacts)
+from kinodyn.crowd.impacts import (
+    ImpactConfig,
+    evaluate_observer,
+    experiment,
+    features,
+    force_geometry,
+    run_impacts,
+)
 from kinodyn.crowd.keyframes import builtin_keyframes
 from kinodyn.errors import ParameterError
 

@@ -8,8 +8,16 @@ import pytest
 
 from kinodyn.crowd import authoring
 from kinodyn.crowd.interpolate import interpolate
-from kinodyn.crowd.keyframes import (BUILTIN_PATH, builtin_keyframes, keyframes_to_dict, load_keyframes,
-                                     parse_keyframes, periodic, phases, travel)
+from kinodyn.crowd.keyframes import (
+    BUILTIN_PATH,
+    builtin_keyframes,
+    keyframes_to_dict,
+    load_keyframes,
+    parse_keyframes,
+    periodic,
+    phases,
+    travel,
+)
 from kinodyn.errors import FileFormatError, ParameterError
 from kinodyn.math import quat
 
@@ -37,7 +45,7 @@ def test_periodic_function_is_equation_8():
 
 def _walk(heading, direction, speed, seconds, stride, dt=1 / 60):
     """Integrate equations 6 and 7 for a body with ``heading`` moving at ``direction`` (world angle)."""
-    n = int(round(seconds / dt))
+    n = round(seconds / dt)
     fwd = np.array([[np.cos(heading), np.sin(heading), 0.0]])
     left = np.array([[-np.sin(heading), np.cos(heading), 0.0]])
     vel = speed * np.array([[np.cos(direction), np.sin(direction), 0.0]])
@@ -67,7 +75,7 @@ def test_forward_travel_advances_d_z_and_wraps(heading):
 
 
 def test_backward_travel_decreases_d_z_and_wraps_to_one():
-    ds, df, ph = _walk(0.3, 0.3 + np.pi, 1.0, 1.6, stride=0.5)
+    _, df, ph = _walk(0.3, 0.3 + np.pi, 1.0, 1.6, stride=0.5)
     assert df == pytest.approx(-1.6)
     steps = np.diff(ph[:, 1])
     assert np.sum(steps > 0.5) == 3 and np.all((steps < 0) | (steps > 0.5))

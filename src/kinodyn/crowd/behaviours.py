@@ -23,8 +23,18 @@ import numpy as np
 from kinodyn.crowd.body import RigidState
 from kinodyn.errors import ParameterError
 
-__all__ = ["IDLE", "GOTO", "WANDER", "FOLLOW", "FLEE", "BEHAVIOURS", "AIConfig", "AIState", "decide",
-           "new_ai"]
+__all__ = [
+    "BEHAVIOURS",
+    "FLEE",
+    "FOLLOW",
+    "GOTO",
+    "IDLE",
+    "WANDER",
+    "AIConfig",
+    "AIState",
+    "decide",
+    "new_ai",
+]
 
 IDLE, GOTO, WANDER, FOLLOW, FLEE = range(5)
 BEHAVIOURS = ("idle", "goto", "wander", "follow", "flee")

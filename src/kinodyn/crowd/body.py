@@ -33,7 +33,7 @@ import numpy as np
 
 from kinodyn.errors import ParameterError
 
-__all__ = ["BodyConfig", "RigidState", "rigid_state", "support_height", "tilt_quat", "GRAVITY"]
+__all__ = ["GRAVITY", "BodyConfig", "RigidState", "rigid_state", "support_height", "tilt_quat"]
 
 GRAVITY = 9.81
 
@@ -82,7 +82,7 @@ class BodyConfig:
                                  f"got {self.com_height!r}")
 
     @property
-    def l(self) -> float:  # noqa: E743 - the paper's name for the pendulum length
+    def l(self) -> float:
         """Pendulum length: centre-of-mass height when upright, metres."""
         return 0.55 * self.height if self.com_height is None else float(self.com_height)
 
@@ -97,7 +97,7 @@ class BodyConfig:
         return np.array([0.0, 0.0, 0.5 * self.height - self.l])
 
     @classmethod
-    def from_skeleton(cls, skeleton, mass: float = 40.0, **kw) -> "BodyConfig":
+    def from_skeleton(cls, skeleton, mass: float = 40.0, **kw) -> BodyConfig:
         """A body the size of ``skeleton`` (its rest height), keeping the paper's proportions.
 
         Args:

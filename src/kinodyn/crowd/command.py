@@ -77,7 +77,7 @@ def simulate(n: int, seconds: float, pushes: int, balls: int, behaviour: str = "
     crowd = Crowd(grid(n, spacing=1.3, seed=seed), rng.uniform(-np.pi, np.pi, n), keyframes=keyframes,
                   config=CrowdConfig(balls=max(1, min(balls, 8))), seed=seed)
     _assign(crowd, behaviour, rng)
-    frames = int(round(seconds * crowd.config.fps))
+    frames = round(seconds * crowd.config.fps)
     push_at = np.sort(rng.integers(30, max(31, frames - 60), pushes))
     ball_at = np.sort(rng.integers(30, max(31, frames - 60), balls))
     crowd.start_recording()
@@ -160,7 +160,7 @@ def impacts_experiment(args, out: Path) -> list[str]:
     meta = {"train_seeds": args.train_seeds, "test_seeds": args.test_seeds, "reactions_per_seed": 54,
             "observer": table}
     atomic_write_bytes(out / "observer.json", (json.dumps(meta, indent=2) + "\n").encode())
-    contact_sheet(out / "impacts.png", shown, sk, title="54 reactions (seed %d): pos, dir, height, strength" % args.seed)
+    contact_sheet(out / "impacts.png", shown, sk, title=f"54 reactions (seed {args.seed}): pos, dir, height, strength")
     lines = [f"wrote 54 reactions: {out / 'reactions.npz'} and {out / 'reactions'}/*.bvh; {out / 'impacts.png'}",
              "observer (trained on other seeds) vs the paper's subjects:"]
     for k, row in table.items():

@@ -34,8 +34,17 @@ from kinodyn.crowd.body import GRAVITY, BodyConfig, RigidState
 from kinodyn.errors import ParameterError
 
 __all__ = [
-    "BALANCE", "FALLING", "BRAKING", "LYING", "STANDING_UP", "STATE_NAMES", "ControllerConfig",
-    "ControlState", "lqr_gains", "control", "new_control_state",
+    "BALANCE",
+    "BRAKING",
+    "FALLING",
+    "LYING",
+    "STANDING_UP",
+    "STATE_NAMES",
+    "ControlState",
+    "ControllerConfig",
+    "control",
+    "lqr_gains",
+    "new_control_state",
 ]
 
 BALANCE, FALLING, BRAKING, LYING, STANDING_UP = 0, 1, 2, 3, 4

@@ -30,7 +30,7 @@ from kinodyn.crowd.interpolate import interpolate, to_world
 from kinodyn.crowd.keyframes import KeyframeSet, builtin_keyframes, phases, travel
 from kinodyn.errors import ParameterError, SimulationDivergedError
 
-__all__ = ["CrowdConfig", "Prop", "Crowd", "grid"]
+__all__ = ["Crowd", "CrowdConfig", "Prop", "grid"]
 
 
 @dataclass(frozen=True)
@@ -137,18 +137,21 @@ class Crowd:
     Args:
         positions: ``(N, 2)`` start positions on the floor, metres.
         headings: ``(N,)`` start headings, radians (default 0: facing +X).
-        body, controller, ai: configurations of the bodies, their controllers and the behaviours.
+        body, controller, ai: configurations of the bodies, their controllers and the behaviours
+            (None: the defaults).
         keyframes: the keyframe set (default: the built-in one of figure 8).
-        config: stepping and posing.
+        config: stepping and posing (None: :class:`CrowdConfig` defaults).
         props: static :class:`Prop` obstacles.
         seed: seeds the behaviours' randomness and the characters' starting walk phases.
         pose: pose the characters every frame (False: physics and control only).
     """
 
-    def __init__(self, positions, headings=None, *, body: BodyConfig = BodyConfig(),
-                 controller: ControllerConfig = ControllerConfig(), ai: AIConfig = AIConfig(),
-                 keyframes: KeyframeSet | None = None, config: CrowdConfig = CrowdConfig(), props=(),
+    def __init__(self, positions, headings=None, *, body: BodyConfig | None = None,
+                 controller: ControllerConfig | None = None, ai: AIConfig | None = None,
+                 keyframes: KeyframeSet | None = None, config: CrowdConfig | None = None, props=(),
                  seed: int = 0, pose: bool = True):
+        body, controller = body or BodyConfig(), controller or ControllerConfig()
+        ai, config = ai or AIConfig(), config or CrowdConfig()
         pos = np.asarray(positions, dtype=np.float64)
         if pos.ndim != 2 or pos.shape[1] != 2 or len(pos) == 0 or not np.all(np.isfinite(pos)):
             raise ParameterError(f"positions must be a finite (N, 2) array with N >= 1, got shape {pos.shape}")

@@ -26,8 +26,20 @@ from kinodyn.crowd.body import BodyConfig
 from kinodyn.crowd.crowd import Crowd, CrowdConfig
 from kinodyn.errors import ParameterError
 
-__all__ = ["ANGLES", "HEIGHTS", "STRENGTHS", "PAPER_ACCURACY", "ImpactConfig", "ImpactSet", "experiment",
-           "force_geometry", "run_impacts", "features", "Observer", "evaluate_observer"]
+__all__ = [
+    "ANGLES",
+    "HEIGHTS",
+    "PAPER_ACCURACY",
+    "STRENGTHS",
+    "ImpactConfig",
+    "ImpactSet",
+    "Observer",
+    "evaluate_observer",
+    "experiment",
+    "features",
+    "force_geometry",
+    "run_impacts",
+]
 
 ANGLES = (-45.0, 0.0, 45.0)
 HEIGHTS = (0.0, 0.5, 1.0)
@@ -110,8 +122,8 @@ def force_geometry(body: BodyConfig, theta_pos, theta_dir, height) -> tuple[np.n
     return point, direction
 
 
-def run_impacts(labels: np.ndarray, seed: int, cfg: ImpactConfig = ImpactConfig(),
-                body: BodyConfig = BodyConfig(), keyframes=None) -> ImpactSet:
+def run_impacts(labels: np.ndarray, seed: int, cfg: ImpactConfig | None = None,
+                body: BodyConfig | None = None, keyframes=None) -> ImpactSet:
     """Simulate one reaction per row of ``labels (R, 4)``, all in one crowd, seeded.
 
     The seed sets the starting walk phases, the headings and the small variations of strength,
@@ -119,6 +131,7 @@ def run_impacts(labels: np.ndarray, seed: int, cfg: ImpactConfig = ImpactConfig(
     """
     from kinodyn.math import quat
 
+    cfg, body = cfg or ImpactConfig(), body or BodyConfig()
     labels = np.asarray(labels, np.int64)
     r = len(labels)
     rng = np.random.default_rng(seed)
@@ -132,7 +145,7 @@ def run_impacts(labels: np.ndarray, seed: int, cfg: ImpactConfig = ImpactConfig(
     h = np.asarray(HEIGHTS)[labels[:, 2]] + rng.uniform(-0.03, 0.03, r)
     point, direction = force_geometry(body, np.radians(np.asarray(ANGLES)[labels[:, 0]]),
                                       np.radians(np.asarray(ANGLES)[labels[:, 1]]), np.maximum(h, 0.0))
-    frames = int(round(cfg.seconds * fps))
+    frames = round(cfg.seconds * fps)
     crowd.start_recording()
     for f in range(int(start.max()) + frames):
         hit = np.flatnonzero(start == f)
@@ -188,7 +201,7 @@ class Observer:
     def __init__(self):
         self.models: dict = {}
 
-    def fit(self, x: np.ndarray, labels: np.ndarray) -> "Observer":
+    def fit(self, x: np.ndarray, labels: np.ndarray) -> Observer:
         from sklearn.pipeline import make_pipeline
         from sklearn.preprocessing import StandardScaler
         from sklearn.svm import SVC

@@ -51,8 +51,19 @@ from kinodyn.errors import FileFormatError, ParameterError
 from kinodyn.skeleton import Skeleton
 
 __all__ = [
-    "AXES", "FORMAT", "FORWARD_PLANE", "SIDE_PLANE", "KeyframeSet", "periodic", "phases", "travel",
-    "load_keyframes", "parse_keyframes", "keyframes_to_dict", "builtin_keyframes", "BUILTIN_PATH",
+    "AXES",
+    "BUILTIN_PATH",
+    "FORMAT",
+    "FORWARD_PLANE",
+    "SIDE_PLANE",
+    "KeyframeSet",
+    "builtin_keyframes",
+    "keyframes_to_dict",
+    "load_keyframes",
+    "parse_keyframes",
+    "periodic",
+    "phases",
+    "travel",
 ]
 
 FORMAT = "kinodyn-keyframe-set"
@@ -145,7 +156,7 @@ class KeyframeSet:
             raise ParameterError(f"behaviour must be one of {', '.join(self.behaviours)}, got {name!r}")
         return self.behaviours.index(name)
 
-    def replace_stride(self, stride: float) -> "KeyframeSet":
+    def replace_stride(self, stride: float) -> KeyframeSet:
         if not (np.isfinite(stride) and stride > 0):
             raise ParameterError(f"stride must be a positive number of metres, got {stride!r}")
         return KeyframeSet(**{**self.__dict__, "stride": float(stride)})
