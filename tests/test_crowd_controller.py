@@ -137,3 +137,29 @@ def test_bad_controller_config():
         ControllerConfig(q_tilt=-1.0)
     with pytest.raises(ParameterError, match="upright_angle < fall_angle"):
         ControllerConfig(fall_angle=1.3)
+
+
+def test_compiled_controller_equals_the_numpy_one():
+    """The crowd's compiled control pass against :func:`control` on random states and modes."""
+    from kinodyn.crowd.body import rigid_state
+    from kinodyn.crowd.controller import ControlState, control, control_kernel, pack_config
+    from kinodyn.math import quat
+
+    body, cfg = BodyConfig(), ControllerConfig()
+    rng = np.random.default_rng(0)
+    n = 3000
+    q = quat.normalize(rng.normal(size=(n, 4)) * [1.0, 0.3, 0.3, 1.0])
+    qpos = np.concatenate([rng.normal(size=(n, 3)), q], axis=1)
+    qvel = rng.normal(size=(n, 6)) * 0.3
+    on_floor = rng.random(n) < 0.8
+    v, h = rng.normal(size=(n, 2)), rng.uniform(-3, 3, n)
+    mode, timer, sf = rng.integers(0, 5, n), rng.uniform(0, 3, n), rng.uniform(-1.6, 1.6, n)
+    cs = ControlState(mode.copy(), timer.copy(), sf.copy())
+    f, t = control(rigid_state(qpos, qvel), cs, v, h, body, cfg, 1 / 60, on_floor)
+    out = np.zeros((n, 6))
+    control_kernel(qpos, qvel, on_floor, v, h, mode, timer, sf, pack_config(body, cfg), 1 / 60, out)
+    np.testing.assert_array_equal(cs.mode, mode)
+    np.testing.assert_allclose(cs.timer, timer, atol=1e-12)
+    np.testing.assert_allclose(cs.stand_from, sf, atol=1e-12)
+    np.testing.assert_allclose(out[:, :3], f, atol=1e-9)
+    np.testing.assert_allclose(out[:, 3:], t, atol=1e-9)

@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numba
 import numpy as np
 
 from kinodyn.crowd.body import GRAVITY, BodyConfig, RigidState
@@ -43,8 +44,10 @@ __all__ = [
     "ControlState",
     "ControllerConfig",
     "control",
+    "control_kernel",
     "lqr_gains",
     "new_control_state",
+    "pack_config",
 ]
 
 BALANCE, FALLING, BRAKING, LYING, STANDING_UP = 0, 1, 2, 3, 4
@@ -291,3 +294,137 @@ def _yaw_torque(s: RigidState, heading_target, body: BodyConfig, cfg: Controller
     tau = np.where(turning, kp * err, 0.0) - kd * s.omega[:, 2]
     return np.clip(tau, -cfg.yaw_torque, cfg.yaw_torque)
 
+
+
+# --------------------------------------------------------------------------- compiled path
+# The same control law and state machine as :func:`control`, one compiled pass per character (the
+# crowd's hot path; ``tests/test_crowd_controller.py`` checks it against the numpy code above).
+
+
+def pack_config(body: BodyConfig, cfg: ControllerConfig) -> np.ndarray:
+    """The parameters the compiled controller reads, as one float array."""
+    k = lqr_gains(body, cfg)
+    return np.array([body.mass, body.l, body.inertia, body.friction, body.reach_front, body.reach_back,
+                     body.reach_side, cfg.fall_angle, cfg.landed_angle, cfg.foot_hold, cfg.brake_force,
+                     cfg.brake_torque, cfg.rest_speed, cfg.lie_time, cfg.stand_time, cfg.stand_strength,
+                     np.log(2.0) / cfg.stand_halflife, cfg.upright_angle, cfg.max_side_lying, cfg.roll_torque,
+                     cfg.roll_damping, np.log(2.0) / cfg.yaw_halflife, cfg.yaw_torque, *k.ravel()])
+
+
+@numba.njit(cache=True)
+def _next_mode(m, timer, tilt, speed, spin, on_floor, side_up, tx, tz, sf, p):
+    fall, landed, rest, lie, stand_t, upright, side_max = p[7], p[8], p[12], p[13], p[14], p[17], p[18]
+    new = m
+    if m == BALANCE and tilt > fall:
+        new = FALLING
+    elif m == FALLING and tilt > landed and on_floor:
+        new = BRAKING
+    elif m == BRAKING and speed < rest and spin < 2 * rest and abs(side_up) <= np.sin(side_max):
+        new = LYING
+    elif m == LYING:
+        if speed > 3 * rest or spin > 6 * rest:
+            new = BRAKING
+        if timer > lie and abs(tz) < side_max:
+            new = STANDING_UP
+            sf = tx
+    elif m == STANDING_UP:
+        if timer > stand_t and tilt < upright:
+            new = BALANCE
+        if timer > 0.3 and abs(tx) > abs(sf) + 0.3:
+            new = FALLING
+    return new, sf
+
+
+# long kernel: the whole control law per character in one pass, so the crowd has no per-step numpy
+@numba.njit(cache=True, parallel=True)
+def control_kernel(qpos, qvel, on_floor, v_target, heading_target, mode, timer, stand_from, p, dt, out):
+    """Compiled :func:`control` on MuJoCo's free-joint state: ``qpos (N, 7)``, ``qvel (N, 6)``,
+    ``on_floor (N,)``, ``v_target (N, 2)``, ``heading_target (N,)``; updates ``mode``, ``timer``,
+    ``stand_from`` in place and writes ``out (N, 6)`` (force, torque at the centre of mass, world)."""
+    m_, l, inertia, mu, r_front, r_back, r_side = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
+    g = 9.81
+    for i in numba.prange(qpos.shape[0]):
+        nq = np.sqrt(qpos[i, 3] ** 2 + qpos[i, 4] ** 2 + qpos[i, 5] ** 2 + qpos[i, 6] ** 2)
+        w, x, y, z = qpos[i, 3] / nq, qpos[i, 4] / nq, qpos[i, 5] / nq, qpos[i, 6] / nq
+        h = 2.0 * np.arctan2(z, w)
+        ch, sh = np.cos(h), np.sin(h)
+        ux, uy, uz = 2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)
+        uf, ul = ux * ch + uy * sh, -ux * sh + uy * ch
+        tx, tz = np.arctan2(uf, uz), np.arcsin(min(1.0, max(-1.0, ul)))
+        a0, a1, a2 = qvel[i, 3], qvel[i, 4], qvel[i, 5]
+        t0, t1, t2 = 2 * (y * a2 - z * a1), 2 * (z * a0 - x * a2), 2 * (x * a1 - y * a0)
+        ox, oy, oz = a0 + w * t0 + (y * t2 - z * t1), a1 + w * t1 + (z * t0 - x * t2), a2 + w * t2 + (x * t1 - y * t0)
+        vx, vy = qvel[i, 0], qvel[i, 1]
+        vf, vs = vx * ch + vy * sh, -vx * sh + vy * ch
+        rate_x, rate_z = -ox * sh + oy * ch, -(ox * ch + oy * sh)
+        tilt = np.arccos(min(1.0, max(-1.0, uz)))
+        speed, spin = np.sqrt(vx * vx + vy * vy), np.sqrt(ox * ox + oy * oy + oz * oz)
+        side_up = 2 * (y * z + w * x)
+        old = mode[i]
+        new, stand_from[i] = _next_mode(old, timer[i], tilt, speed, spin, on_floor[i], side_up, tx, tz,
+                                        stand_from[i], p)
+        if new != old:
+            timer[i] = 0.0
+        else:
+            timer[i] += dt
+        mode[i] = new
+        fn = m_ * g if on_floor[i] else 0.0
+        # balance (LQR on both planes), bounded centre-of-pressure torque
+        v0f = v_target[i, 0] * ch + v_target[i, 1] * sh
+        v0s = -v_target[i, 0] * sh + v_target[i, 1] * ch
+        ff = -(p[23] * tx + p[24] * rate_x + p[25] * (vf - v0f))
+        fs = -(p[23] * tz + p[24] * rate_z + p[25] * (vs - v0s))
+        tqx = min(max(-(p[26] * tx + p[27] * rate_x + p[28] * (vf - v0f)), -r_front * fn), r_back * fn)
+        tqz = min(max(-(p[26] * tz + p[27] * rate_z + p[28] * (vs - v0s)), -r_side * fn), r_side * fn)
+        # foot velocity: v - omega x (l u)
+        fvx = vx - l * (oy * uz - oz * uy)
+        fvy = vy - l * (oz * ux - ox * uz)
+        hold, brake, stand = new == FALLING, new == BRAKING or new == LYING, new == STANDING_UP
+        if hold or stand:
+            ff, fs = -p[9] * (fvx * ch + fvy * sh), -p[9] * (-fvx * sh + fvy * ch)
+        if brake:
+            ff, fs = -p[10] * vf, -p[10] * vs
+        if hold or brake:
+            tqx, tqz = 0.0, 0.0
+        if stand:
+            ramp = min(max(timer[i] / p[14], 0.0), 1.0)
+            target = stand_from[i] * (0.5 + 0.5 * np.cos(np.pi * ramp))
+            wn = p[16]
+            kp, kd = inertia * wn * wn, 2.0 * inertia * wn
+            mgl = m_ * g * l
+            lim = p[15] * mgl
+            tqx = min(max(kp * (target - tx) - kd * rate_x - mgl * np.sin(tx), -lim), lim)
+            tqz = min(max(-kp * tz - kd * rate_z - mgl * np.sin(tz), -lim), lim)
+        fmag = np.sqrt(ff * ff + fs * fs)
+        sc = min(1.0, mu * fn / max(fmag, 1e-9))
+        ff, fs = ff * sc, fs * sc
+        fx, fy = ff * ch - fs * sh, ff * sh + fs * ch
+        # torques: tau_x about left (-sh, ch, 0), tau_z about -forward
+        tax = tqx * (-sh) - tqz * ch
+        tay = tqx * ch - tqz * sh
+        taz = 0.0
+        # yaw
+        wy = p[21]
+        kpy, kdy = inertia * wy * wy, 2.0 * inertia * wy
+        err = (heading_target[i] - h + np.pi) % (2 * np.pi) - np.pi
+        yaw = (kpy * err if new == BALANCE else 0.0) - kdy * oz
+        yaw = min(max(yaw, -p[22]), p[22])
+        if on_floor[i]:
+            taz += yaw
+        # moment of the foot force: (-l u) x (fx, fy, 0)
+        tax += -l * (uy * 0.0 - uz * fy)
+        tay += -l * (uz * fx - ux * 0.0)
+        taz += -l * (ux * fy - uy * fx)
+        if brake:
+            tax -= p[11] * ox
+            tay -= p[11] * oy
+            taz -= p[11] * oz
+        if hold or brake:
+            front_up = 2 * (x * z - w * y)
+            sign = 1.0 if front_up >= 0.0 else -1.0
+            rt = min(max(p[19] * 4.0 * sign * side_up, -p[19]), p[19]) - p[20] * (ox * ux + oy * uy + oz * uz)
+            tax += rt * ux
+            tay += rt * uy
+            taz += rt * uz
+        out[i, 0], out[i, 1], out[i, 2] = fx, fy, 0.0
+        out[i, 3], out[i, 4], out[i, 5] = tax, tay, taz

@@ -25,8 +25,15 @@ import numpy as np
 
 from kinodyn.crowd.behaviours import AIConfig, decide, new_ai
 from kinodyn.crowd.body import BodyConfig, rigid_state, support_height
-from kinodyn.crowd.controller import BALANCE, STANDING_UP, ControllerConfig, control, new_control_state
-from kinodyn.crowd.interpolate import interpolate, to_world
+from kinodyn.crowd.controller import (
+    BALANCE,
+    STANDING_UP,
+    ControllerConfig,
+    control_kernel,
+    new_control_state,
+    pack_config,
+)
+from kinodyn.crowd.interpolate import interpolate
 from kinodyn.crowd.keyframes import KeyframeSet, builtin_keyframes, phases, travel
 from kinodyn.errors import ParameterError, SimulationDivergedError
 
@@ -168,6 +175,8 @@ class Crowd:
         rng = np.random.default_rng(seed)
         self.ai = new_ai(n, head, ai, rng)
         self.control_state = new_control_state(n)
+        self._params = pack_config(body, controller)
+        self._forces = np.zeros((n, 6))
         stride = self.keyframes.stride
         self.d_side = np.zeros(n)
         self.d_front = rng.uniform(0.0, stride, n)
@@ -254,9 +263,10 @@ class Crowd:
             on_floor = s.r[:, 2] < support_height(body, s.theta_x, s.theta_z) + cfg.on_floor_margin
             v, h = decide(self.ai, s, self.ai_config, self.dt)
             self._v_target = v
-            f, t = control(s, self.control_state, v, h, body, self.controller, self.dt, on_floor)
-            self._xfrc[:, :3] = f
-            self._xfrc[:, 3:] = t
+            cs = self.control_state
+            control_kernel(self._qpos, self._qvel, on_floor, v, h, cs.mode, cs.timer, cs.stand_from,
+                           self._params, self.dt, self._forces)
+            self._xfrc[:] = self._forces
             self._apply_pushes()
             t1 = time.thread_time()
             mujoco.mj_step(self.model, self.data, nstep=cfg.substeps)
@@ -302,8 +312,8 @@ class Crowd:
         a_fwd = s.v_forward ** 2 + (3.0 * s.theta_x) ** 2
         target_w = a_side / (a_side + a_fwd + 0.02)
         self.side_weight += (target_w - self.side_weight) * (1.0 - 0.5 ** (self.dt / cfg.side_halflife))
-        interpolate(self.keyframes, p, bw, self.side_weight, out=(self.local_rot, self.root_pos))
-        to_world(self.local_rot, self.root_pos, s.r, s.quat)
+        interpolate(self.keyframes, p, bw, self.side_weight, out=(self.local_rot, self.root_pos),
+                    frame=(s.r, s.quat))
 
     # ------------------------------------------------------------------ recording
     def start_recording(self) -> None:

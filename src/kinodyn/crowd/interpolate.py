@@ -36,6 +36,9 @@ TILT_SCALE = 0.5
 PHASE_SCALE = 0.25
 
 
+#: a caller's side weight under this (or over one minus this) poses one plane only; the weight is
+#: stretched in between, so the blend stays continuous.
+SIDE_DEAD_ZONE = 0.1
 MAX_TERMS = 32  # behaviours (2 blended) x planes (2) x levels (2) x spline keys (4)
 
 
@@ -106,14 +109,14 @@ def _cyc(d):
 
 @numba.njit(cache=True)
 def _side_weight(tx, tz, dx, dz, given, tilt_scale, phase_scale):
-    if given >= 0.0:
-        return given
+    if given >= 0.0:  # a caller's weight, with dead zones at both ends (one plane only: half the work)
+        return min(1.0, max(0.0, (given - SIDE_DEAD_ZONE) / (1.0 - 2.0 * SIDE_DEAD_ZONE)))
     df = np.sqrt((tz / tilt_scale) ** 2 + (_cyc(dx) / phase_scale) ** 2)
     dsd = np.sqrt((tx / tilt_scale) ** 2 + (_cyc(dz) / phase_scale) ** 2)
     return 0.0 if df == 0.0 else df / (df + dsd)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath=True)
 def _accumulate(i, m, idx, wts, key_rot, key_root, out_rot, out_root):
     """Weighted sum of the terms' poses (quaternions on the first term's hemisphere), normalized."""
     nj = key_rot.shape[1]
@@ -139,9 +142,26 @@ def _accumulate(i, m, idx, wts, key_rot, key_root, out_rot, out_root):
                 out_rot[i, j, c] /= nrm
 
 
+@numba.njit(cache=True)
+def _to_frame(i, pos, q, out_rot, out_root):
+    """Show pose ``i`` in the frame (``pos (N, 3)``, ``q (N, 4)``): root rotation and position."""
+    w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    a0, a1, a2, a3 = out_rot[i, 0, 0], out_rot[i, 0, 1], out_rot[i, 0, 2], out_rot[i, 0, 3]
+    out_rot[i, 0, 0] = w * a0 - x * a1 - y * a2 - z * a3
+    out_rot[i, 0, 1] = w * a1 + x * a0 + y * a3 - z * a2
+    out_rot[i, 0, 2] = w * a2 - x * a3 + y * a0 + z * a1
+    out_rot[i, 0, 3] = w * a3 + x * a2 - y * a1 + z * a0
+    vx, vy, vz = out_root[i, 0], out_root[i, 1], out_root[i, 2]
+    tx, ty, tz = 2 * (y * vz - z * vy), 2 * (z * vx - x * vz), 2 * (x * vy - y * vx)
+    out_root[i, 0] = pos[i, 0] + vx + w * tx + (y * tz - z * ty)
+    out_root[i, 1] = pos[i, 1] + vy + w * ty + (z * tx - x * tz)
+    out_root[i, 2] = pos[i, 2] + vz + w * tz + (x * ty - y * tx)
+
+
 @numba.njit(cache=True, parallel=True)
 def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, key_rot, key_phase,
-                   level_tilt, level_start, level_count, plane_start, plane_count, idx, wts, out_rot, out_root):
+                   level_tilt, level_start, level_count, plane_start, plane_count, idx, wts, out_rot, out_root,
+                   frame_pos, frame_quat, in_frame):
     nb = bweights.shape[1]
     for i in numba.prange(points.shape[0]):
         tx, tz, dx, dz = points[i, 0], points[i, 1], points[i, 2], points[i, 3]
@@ -160,10 +180,12 @@ def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, 
                 m = _plane_terms(b, 1, tz, dx, wb * ws, plane_start, plane_count, level_tilt, key_phase,
                                  level_start, level_count, idx[i], wts[i], m)
         _accumulate(i, m, idx[i], wts[i], key_rot, key_root, out_rot, out_root)
+        if in_frame:
+            _to_frame(i, frame_pos, frame_quat, out_rot, out_root)
 
 
 def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
-                tilt_scale: float = TILT_SCALE, phase_scale: float = PHASE_SCALE):
+                tilt_scale: float = TILT_SCALE, phase_scale: float = PHASE_SCALE, frame=None):
     """Poses in the body frame Sr at points of the keyframe space.
 
     Args:
@@ -172,14 +194,17 @@ def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
             ``[0, 1)`` (other values are wrapped with :func:`~kinodyn.crowd.keyframes.periodic`).
         behaviour: an int or ``(N,)`` ints (indices into ``ks.behaviours``), or ``(N, B)`` weights
             (rows summing to 1).
-        side_weight: ``(N,)`` weights of the side plane in ``[0, 1]``; None: from the point (module
-            docstring).
+        side_weight: ``(N,)`` weights of the side plane in ``[0, 1]`` (mapped continuously so that
+            weights within :data:`SIDE_DEAD_ZONE` of 0 or 1 pose one plane only); None: from the point
+            (module docstring).
         out: optional ``(rot (N, J, 4), root (N, 3))`` arrays to fill.
         tilt_scale, phase_scale: the distance scales of the plane weights.
+        frame: optional ``(body_pos (N, 3), body_quat (N, 4))``: show the poses in these frames Sr
+            (the same as :func:`to_world` afterwards, in the same compiled pass).
 
     Returns:
         ``(local_rot (N, J, 4), root (N, 3))``: local rotations (the root's relative to Sr) and the
-        root position in Sr relative to the centre of mass.
+        root position in Sr relative to the centre of mass (or in the world, with ``frame``).
     """
     pts = np.array(points, dtype=np.float64, ndmin=2)
     if pts.ndim != 2 or pts.shape[1] != 4:
@@ -195,11 +220,17 @@ def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
     else:
         sw = np.clip(np.broadcast_to(np.asarray(side_weight, np.float64), (n,)), 0.0, 1.0)
     rot, root = out if out is not None else (np.empty((n, ks.key_rot.shape[1], 4)), np.empty((n, 3)))
-    idx = np.zeros((n, MAX_TERMS), np.int64)
-    wts = np.zeros((n, MAX_TERMS))
+    idx = np.empty((n, MAX_TERMS), np.int64)
+    wts = np.empty((n, MAX_TERMS))
+    if frame is None:
+        fpos, fquat, in_frame = np.zeros((1, 3)), np.zeros((1, 4)), False
+    else:
+        fpos, fquat, in_frame = np.ascontiguousarray(frame[0], np.float64), np.ascontiguousarray(frame[1], np.float64), True
+        if fpos.shape != (n, 3) or fquat.shape != (n, 4):
+            raise ParameterError(f"frame must be ((N, 3), (N, 4)) arrays for N = {n}, got {fpos.shape}, {fquat.shape}")
     _interp_kernel(pts, bw, np.ascontiguousarray(sw), float(tilt_scale), float(phase_scale), ks.key_root,
                    ks.key_rot, ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start,
-                   ks.plane_count, idx, wts, rot, root)
+                   ks.plane_count, idx, wts, rot, root, fpos, fquat, in_frame)
     return rot, root
 
 
