@@ -82,7 +82,7 @@ def test_pose_is_shown_in_the_body_frame():
     c = Crowd(grid(5, spacing=3.0), np.linspace(-2, 2, 5))
     c.push(np.arange(5), [[300.0, 100.0, 0.0]] * 5)
     c.step(20)
-    rot, root = interpolate(c.keyframes, c._points, c.behaviour_weights, c.side_weight)
+    rot, root = interpolate(c.keyframes, c.points, c.behaviour_weights, c.side_weight)
     s = c.state
     np.testing.assert_allclose(c.root_pos, s.r + quat.mul_vec(s.quat, root), atol=1e-9)
     np.testing.assert_allclose(quat.angle_between(c.local_rot[:, 0], quat.mul(s.quat, rot[:, 0])), 0, atol=1e-7)

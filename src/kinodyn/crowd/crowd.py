@@ -190,7 +190,8 @@ class Crowd:
         j = self.keyframes.key_rot.shape[1]
         self.local_rot, self.root_pos = np.zeros((n, j, 4)), np.zeros((n, 3))
         self.local_rot[..., 0] = 1.0
-        self._points = np.zeros((n, 4))
+        #: ``(N, 4)`` each body's current point of Q (Theta_x, Theta_z, D_x, D_z), set by posing.
+        self.points = np.zeros((n, 4))
         self._v_target = np.zeros((n, 2))
         self._pushes = _Pushes()
         self._next_ball = 0
@@ -293,7 +294,7 @@ class Crowd:
     def _pose(self) -> None:
         """Map every body's state into Q and pose it from the keyframe set in its frame Sr (section 5)."""
         s, cfg = self.state, self.config
-        p = self._points
+        p = self.points
         p[:, 0], p[:, 1] = s.theta_x, s.theta_z
         p[:, 2], p[:, 3] = phases(self.d_side, self.d_front, self.keyframes.stride)
         target = np.zeros_like(self.behaviour_weights)
