@@ -1,0 +1,156 @@
+"""Crowd benchmark: keyframe characters simulated and posed at 60 frames per second on one core.
+
+``kinodyn bench crowd [--quick] --json FILE`` reports
+
+* ``characters_at_60fps``: the largest number of characters whose frame (behaviours, control, MuJoCo
+  with contacts between the characters, posing) takes at most 1/60 s of CPU on one core, *measured at
+  that count*: the scaling runs bracket it and a bisection measures candidates between them;
+* ``us_per_character_frame``, ``physics_us_per_character_frame``, ``posing_us_per_character_frame``
+  (and ``control_us_per_character_frame``) at that count;
+* ``ratio_to_bare_bodies``: that cost over the cost of MuJoCo stepping the same model (the same number
+  of the same free bodies on the floor, same substeps) with no controller and no posing, measured in
+  the same run at the same count;
+* ``us_per_character_frame_N`` and ``bare_us_per_character_frame_N`` for each scaling count N (100 to
+  10,000; the quick mode stops lower and reports only what it measured), and ``contacts_per_character_N``;
+* ``observer_accuracy_pos``, ``_dir``, ``_height``, ``_strength``: the automatic observer of the
+  impact experiment (:mod:`kinodyn.crowd.impacts`), trained on other seeds, next to the paper's human
+  subjects (0.73, 0.78, 0.54, 0.88) in ``baseline``.
+
+The scene: characters 1.1 m apart on a jittered grid, wandering (so they bump into each other) with a
+tenth of them pushed hard during the measured window. Times are CPU seconds of the stepping thread
+(``time.thread_time``), so other jobs on a shared machine do not count; numba runs on one thread.
+Building a MuJoCo model grows about quadratically with the number of free bodies (its compiler's
+constants); it is not part of the timings, but the full run spends minutes compiling 10,000 bodies.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from kinodyn.bench import BenchResult
+
+__all__ = ["measure", "measure_bare", "run"]
+
+FRAME_BUDGET = 1.0 / 60.0
+
+
+def _crowd(n: int, seed: int = 0, pose: bool = True):
+    from kinodyn.crowd.behaviours import WANDER
+    from kinodyn.crowd.crowd import Crowd, CrowdConfig, grid
+
+    c = Crowd(grid(n, spacing=1.1, jitter=0.15, seed=seed), np.random.default_rng(seed).uniform(-3, 3, n),
+              seed=seed, pose=pose, config=CrowdConfig(balls=2))
+    c.ai.kind[:] = WANDER
+    return c
+
+
+def measure(n: int, frames: int, warmup: int = 20) -> dict[str, float]:
+    """CPU seconds per frame for ``n`` characters, split by part, contacts per character, and the same
+    model stepped bare (``bare``: fresh state, no controller, no posing)."""
+    c = _crowd(n)
+    c.step(warmup)
+    rng = np.random.default_rng(1)
+    who = rng.choice(n, max(1, n // 10), replace=False)
+    ang = rng.uniform(-np.pi, np.pi, len(who))
+    for k in c.timings:
+        c.timings[k] = 0.0
+    c.push(who, 1200.0 * np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], axis=1), duration=0.1)
+    contacts = 0
+    for _ in range(frames):
+        c.step()
+        contacts += c.data.ncon
+    out = {k: v / frames for k, v in c.timings.items()}
+    out["total"] = sum(out.values())
+    out["contacts_per_character"] = contacts / frames / n
+    out["bare"] = measure_bare(c.model, c.config.substeps, frames)
+    return out
+
+
+def measure_bare(model, substeps: int, frames: int) -> float:
+    """CPU seconds per frame of MuJoCo alone stepping ``model`` from its initial state (the same
+    bodies on the floor; no controller, no posing, so they topple and lie)."""
+    import mujoco
+
+    d = mujoco.MjData(model)
+    mujoco.mj_step(model, d, nstep=substeps * 5)
+    t0 = time.thread_time()
+    for _ in range(frames):
+        mujoco.mj_step(model, d, nstep=substeps)
+    return (time.thread_time() - t0) / frames
+
+
+def _search(points: dict[int, dict], frames: int, say) -> int:
+    """The largest count measured within the frame budget, bisecting between the scaling points."""
+    ok = [n for n, r in points.items() if r["total"] <= FRAME_BUDGET]
+    bad = [n for n, r in points.items() if r["total"] > FRAME_BUDGET]
+    if not ok:
+        return 0
+    lo, hi = max(ok), min([b for b in bad if b > max(ok)], default=None)
+    while hi is not None and hi - lo > max(100, lo // 8):
+        mid = (lo + hi) // 2
+        points[mid] = r = measure(mid, frames)
+        say(f"  {mid} characters: {r['total'] * 1e3:.2f} ms per frame")
+        lo, hi = (mid, hi) if r["total"] <= FRAME_BUDGET else (lo, mid)
+    return lo
+
+
+def _observer(result: BenchResult, quick: bool) -> None:
+    from kinodyn.crowd.impacts import PAPER_ACCURACY, evaluate_observer, experiment, run_impacts
+    from kinodyn.crowd.keyframes import builtin_keyframes
+
+    labels = experiment()
+    train = [run_impacts(labels, s) for s in range(1, 4 if quick else 9)]
+    test = [run_impacts(labels, s) for s in ((100,) if quick else (100, 101, 102))]
+    table = evaluate_observer(train, test, builtin_keyframes().skeleton)
+    for k, row in table.items():
+        result.add(f"observer_accuracy_{k}", row["accuracy"], "fraction")
+        result.add(f"observer_error_mu_{k}", row["mu"], "steps")
+        result.add(f"observer_error_sigma_{k}", row["sigma"], "steps")
+        result.baseline[f"paper_accuracy_{k}"] = PAPER_ACCURACY[k]
+    result.notes["observer"] = (f"trained on {len(train)} seeds x 54 reactions, tested on {len(test)} other "
+                                "seeds; the paper's figures are six human subjects (table 1)")
+
+
+def run(quick: bool = False, progress=None) -> BenchResult:
+    import numba
+
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        return _run(quick, progress)
+    finally:
+        numba.set_num_threads(threads)
+
+
+def _run(quick: bool, progress) -> BenchResult:
+    say = (lambda s: print(s, flush=True)) if progress is not None else (lambda s: None)
+    result = BenchResult("crowd")
+    counts = (100, 300, 1000) if quick else (100, 300, 1000, 3000, 10000)
+    frames = 40 if quick else 90
+    points = {}
+    for n in counts:
+        points[n] = r = measure(n, frames)
+        bare = r["bare"]
+        say(f"  {n} characters: {r['total'] * 1e3:.2f} ms per frame (bare bodies {bare * 1e3:.2f} ms)")
+        result.add(f"us_per_character_frame_{n}", r["total"] / n * 1e6, "us")
+        result.add(f"bare_us_per_character_frame_{n}", bare / n * 1e6, "us")
+        result.add(f"contacts_per_character_{n}", r["contacts_per_character"], "contacts")
+    best = _search(points, frames, say)
+    result.add("characters_at_60fps", best, "characters")
+    if best:
+        r = points[best]
+        bare = r["bare"]
+        result.add("us_per_character_frame", r["total"] / best * 1e6, "us")
+        result.add("physics_us_per_character_frame", r["physics"] / best * 1e6, "us")
+        result.add("posing_us_per_character_frame", r["posing"] / best * 1e6, "us")
+        result.add("control_us_per_character_frame", r["control"] / best * 1e6, "us")
+        result.add("bare_us_per_character_frame", bare / best * 1e6, "us")
+        result.add("ratio_to_bare_bodies", r["total"] / bare, "x")
+        result.baseline["bare_bodies_us_per_character_frame"] = bare / best * 1e6
+    if quick and best >= max(counts):
+        result.notes["characters_at_60fps"] = (f"the quick mode measures up to {max(counts)} characters; "
+                                               "all of them fit, so this is a lower bound")
+    _observer(result, quick)
+    return result

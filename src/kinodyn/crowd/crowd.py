@@ -1,0 +1,345 @@
+"""Many keyframe characters simulated and posed together (sections 3 to 5, figure 1).
+
+Mitake et al., figure 1: every frame the character AI (:mod:`behaviours`) sets a target, the
+controller (:mod:`controller`) computes the friction force and centre-of-pressure torque of each body,
+MuJoCo steps all bodies with the floor, the props, thrown balls and each other, and each body's state
+is mapped into the keyframe space (:mod:`keyframes`) and posed from the keyframe set
+(:mod:`interpolate`) in its frame Sr. All of it runs on arrays over the N characters: one MuJoCo model
+holds every body; the control is numpy, the posing one compiled kernel; there is no Python loop over
+characters in a frame.
+
+The feet are the controller's: the floor itself is frictionless for the characters (MuJoCo contact
+dimension 1), so the only horizontal floor force on a body is the bounded friction force of section
+4.2. Characters touch each other frictionlessly; balls and props have friction.
+
+:class:`Crowd` is the one mutable simulator here; it says what it changes. Units: metres, seconds,
+radians, newtons, kilograms; world Z up.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinodyn.crowd.behaviours import AIConfig, decide, new_ai
+from kinodyn.crowd.body import BodyConfig, rigid_state, support_height
+from kinodyn.crowd.controller import (
+    BALANCE,
+    STANDING_UP,
+    ControllerConfig,
+    control_kernel,
+    new_control_state,
+    pack_config,
+)
+from kinodyn.crowd.interpolate import interpolate
+from kinodyn.crowd.keyframes import KeyframeSet, builtin_keyframes, phases, travel
+from kinodyn.errors import ParameterError, SimulationDivergedError
+
+__all__ = ["Crowd", "CrowdConfig", "Prop", "grid"]
+
+
+@dataclass(frozen=True)
+class CrowdConfig:
+    """How a crowd is stepped and posed.
+
+    Attributes:
+        fps: frames per second (control, posing and recording run once per frame).
+        substeps: MuJoCo steps per frame (timestep ``1 / (fps * substeps)``).
+        balls: ball slots in the model (MuJoCo models are fixed once built; :meth:`Crowd.throw`
+            reuses them in turn).
+        ball_radius, ball_mass: metres and kilograms of a thrown ball.
+        behaviour_ease: seconds to blend from one behaviour value B to another.
+        side_halflife: seconds to ease the side-plane weight of the interpolation.
+        on_floor_margin: metres above its resting height under which a body touches the floor.
+        still_speed: m/s under which a balancing character that is asked to stay is *still*: the AI
+            then shows it with the standing-up behaviour, whose keyframe at zero tilt is the standing
+            pose (section 6.1: the AI picks B; walking resumes B = walking as soon as it moves).
+    """
+
+    fps: float = 60.0
+    substeps: int = 1
+    balls: int = 4
+    ball_radius: float = 0.11
+    ball_mass: float = 1.0
+    behaviour_ease: float = 0.3
+    side_halflife: float = 0.15
+    on_floor_margin: float = 0.04
+    still_speed: float = 0.15
+
+    def __post_init__(self):
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ParameterError(f"CrowdConfig.fps must be positive, got {self.fps!r}")
+        if not (isinstance(self.substeps, int) and self.substeps >= 1):
+            raise ParameterError(f"CrowdConfig.substeps must be an int >= 1, got {self.substeps!r}")
+        if not (isinstance(self.balls, int) and self.balls >= 0):
+            raise ParameterError(f"CrowdConfig.balls must be an int >= 0, got {self.balls!r}")
+
+
+@dataclass(frozen=True)
+class Prop:
+    """A static obstacle: ``kind`` ``"box"`` (``size`` = half extents) or ``"cylinder"`` (``size`` =
+    radius, half height, unused), centred at ``pos (3,)``."""
+
+    kind: str
+    pos: tuple[float, float, float]
+    size: tuple[float, float, float]
+
+    def __post_init__(self):
+        if self.kind not in ("box", "cylinder"):
+            raise ParameterError(f"Prop.kind must be 'box' or 'cylinder', got {self.kind!r}")
+
+
+def grid(n: int, spacing: float = 1.2, jitter: float = 0.2, seed: int = 0) -> np.ndarray:
+    """``(n, 2)`` positions on a square grid around the origin with random jitter (metres)."""
+    side = int(np.ceil(np.sqrt(n)))
+    i = np.arange(n)
+    p = np.stack([i % side, i // side], axis=1).astype(float) * spacing
+    p -= p.mean(axis=0)
+    return p + np.random.default_rng(seed).uniform(-jitter, jitter, (n, 2))
+
+
+def _build_model(pos: np.ndarray, heading: np.ndarray, body: BodyConfig, cfg: CrowdConfig, props):
+    import mujoco
+
+    spec = mujoco.MjSpec()
+    spec.option.timestep = 1.0 / (cfg.fps * cfg.substeps)
+    spec.memory = int(64e6 + 60e3 * len(pos))
+    spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+    w = spec.worldbody
+    w.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], condim=1)
+    for (x, y), h in zip(pos, heading):
+        b = w.add_body(pos=[x, y, body.l], quat=[np.cos(h / 2), 0, 0, np.sin(h / 2)])
+        b.add_freejoint()
+        b.explicitinertial = True
+        b.mass = body.mass
+        b.inertia = [body.inertia] * 3
+        b.ipos = [0.0, 0.0, 0.0]
+        b.add_geom(type=mujoco.mjtGeom.mjGEOM_ELLIPSOID, size=list(body.semi_axes),
+                   pos=list(body.shape_offset), condim=1, density=0.0)
+    for k in range(cfg.balls):
+        b = w.add_body(pos=[-1000.0 - 3 * k, -1000.0, cfg.ball_radius])
+        b.add_freejoint()
+        b.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[cfg.ball_radius, 0, 0], mass=cfg.ball_mass,
+                   condim=3, friction=[0.6, 0.005, 0.0001])
+    for p in props:
+        kind = mujoco.mjtGeom.mjGEOM_BOX if p.kind == "box" else mujoco.mjtGeom.mjGEOM_CYLINDER
+        w.add_geom(type=kind, pos=list(p.pos), size=list(p.size), condim=3, friction=[0.8, 0.005, 0.0001])
+    model = spec.compile()
+    return model, mujoco.MjData(model)
+
+
+@dataclass
+class _Pushes:
+    who: list = field(default_factory=list)
+    force: list = field(default_factory=list)
+    local: list = field(default_factory=list)
+    until: list = field(default_factory=list)
+
+
+class Crowd:
+    """N keyframe characters in one MuJoCo world (mutable: :meth:`step` advances it in place).
+
+    Args:
+        positions: ``(N, 2)`` start positions on the floor, metres.
+        headings: ``(N,)`` start headings, radians (default 0: facing +X).
+        body, controller, ai: configurations of the bodies, their controllers and the behaviours
+            (None: the defaults).
+        keyframes: the keyframe set (default: the built-in one of figure 8).
+        config: stepping and posing (None: :class:`CrowdConfig` defaults).
+        props: static :class:`Prop` obstacles.
+        seed: seeds the behaviours' randomness and the characters' starting walk phases.
+        pose: pose the characters every frame (False: physics and control only).
+    """
+
+    def __init__(self, positions, headings=None, *, body: BodyConfig | None = None,
+                 controller: ControllerConfig | None = None, ai: AIConfig | None = None,
+                 keyframes: KeyframeSet | None = None, config: CrowdConfig | None = None, props=(),
+                 seed: int = 0, pose: bool = True):
+        body, controller = body or BodyConfig(), controller or ControllerConfig()
+        ai, config = ai or AIConfig(), config or CrowdConfig()
+        pos = np.asarray(positions, dtype=np.float64)
+        if pos.ndim != 2 or pos.shape[1] != 2 or len(pos) == 0 or not np.all(np.isfinite(pos)):
+            raise ParameterError(f"positions must be a finite (N, 2) array with N >= 1, got shape {pos.shape}")
+        n = len(pos)
+        head = np.zeros(n) if headings is None else np.broadcast_to(np.asarray(headings, float), (n,)).copy()
+        self.n, self.body, self.controller, self.ai_config, self.config = n, body, controller, ai, config
+        self.keyframes = builtin_keyframes() if keyframes is None else keyframes
+        self.model, self.data = _build_model(pos, head, body, config, props)
+        self.dt = 1.0 / config.fps
+        self.time, self.frame = 0.0, 0
+        self._qpos = self.data.qpos[: 7 * n].reshape(n, 7)
+        self._qvel = self.data.qvel[: 6 * n].reshape(n, 6)
+        self._xfrc = self.data.xfrc_applied[1: n + 1]
+        rng = np.random.default_rng(seed)
+        self.ai = new_ai(n, head, ai, rng)
+        self.control_state = new_control_state(n)
+        self._params = pack_config(body, controller)
+        self._forces = np.zeros((n, 6))
+        stride = self.keyframes.stride
+        self.d_side = np.zeros(n)
+        self.d_front = rng.uniform(0.0, stride, n)
+        nb = len(self.keyframes.behaviours)
+        self._stand_b = (self.keyframes.behaviours.index("standing_up")
+                         if "standing_up" in self.keyframes.behaviours else 0)
+        self.behaviour_weights = np.zeros((n, nb))
+        self.behaviour_weights[:, 0] = 1.0
+        self.side_weight = np.zeros(n)
+        self.posing = pose
+        j = self.keyframes.key_rot.shape[1]
+        self.local_rot, self.root_pos = np.zeros((n, j, 4)), np.zeros((n, 3))
+        self.local_rot[..., 0] = 1.0
+        #: ``(N, 4)`` each body's current point of Q (Theta_x, Theta_z, D_x, D_z), set by posing.
+        self.points = np.zeros((n, 4))
+        self._v_target = np.zeros((n, 2))
+        self._pushes = _Pushes()
+        self._next_ball = 0
+        self._record: list | None = None
+        #: CPU seconds of this thread spent in each part of :meth:`step` (behaviours and control,
+        #: MuJoCo, posing), accumulated; reset it to measure a stretch.
+        self.timings = {"control": 0.0, "physics": 0.0, "posing": 0.0}
+        self.state = rigid_state(self._qpos, self._qvel)
+        if pose:
+            self._pose()
+
+    # ------------------------------------------------------------------ outside forces
+    def push(self, who, force, point=None, duration: float = 0.1) -> None:
+        """Push characters: ``force (k, 3)`` newtons at world ``point (k, 3)`` (default: the centre of
+        mass) for ``duration`` seconds; the point is kept fixed on the body while the push lasts."""
+        who = np.atleast_1d(np.asarray(who, np.int64))
+        if np.any((who < 0) | (who >= self.n)):
+            raise ParameterError(f"who must index characters 0..{self.n - 1}, got {who.tolist()}")
+        f = np.broadcast_to(np.asarray(force, float), (len(who), 3))
+        s = self.state
+        p = s.r[who] if point is None else np.broadcast_to(np.asarray(point, float), (len(who), 3))
+        from kinodyn.math import quat
+
+        local = quat.inv_mul_vec(s.quat[who], p - s.r[who])
+        pu = self._pushes
+        pu.who.append(who), pu.force.append(np.array(f)), pu.local.append(local)
+        pu.until.append(np.full(len(who), self.time + duration))
+
+    def throw(self, pos, vel) -> int:
+        """Throw a ball from world ``pos (3,)`` with velocity ``vel (3,)`` m/s; returns its slot."""
+        if self.config.balls == 0:
+            raise ParameterError("this crowd has no ball slots (CrowdConfig.balls = 0)")
+        k = self._next_ball
+        self._next_ball = (k + 1) % self.config.balls
+        q0, v0 = 7 * self.n + 7 * k, 6 * self.n + 6 * k
+        self.data.qpos[q0: q0 + 7] = [*pos, 1.0, 0.0, 0.0, 0.0]
+        self.data.qvel[v0: v0 + 6] = [*vel, 0.0, 0.0, 0.0]
+        return k
+
+    def ball_positions(self) -> np.ndarray:
+        """``(balls, 3)`` ball centres."""
+        q = self.data.qpos[7 * self.n:].reshape(-1, 7)
+        return q[:, :3].copy()
+
+    def _apply_pushes(self) -> None:
+        pu = self._pushes
+        if not pu.who:
+            return
+        who, f, local, until = (np.concatenate(x) for x in (pu.who, pu.force, pu.local, pu.until))
+        live = until > self.time + 1e-9
+        who, f, local, until = who[live], f[live], local[live], until[live]
+        pu.who, pu.force, pu.local, pu.until = [who], [f], [local], [until]
+        from kinodyn.math import quat
+
+        s = self.state
+        arm = quat.mul_vec(s.quat[who], local)
+        np.add.at(self._xfrc, (who, slice(0, 3)), f)
+        np.add.at(self._xfrc, (who, slice(3, 6)), np.cross(arm, f))
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, frames: int = 1) -> None:
+        """Advance ``frames`` frames: behaviours, control, physics, travel, posing (and recording)."""
+        import mujoco
+
+        body, cfg = self.body, self.config
+        tm = self.timings
+        for _ in range(int(frames)):
+            t0 = time.thread_time()
+            s = self.state
+            on_floor = s.r[:, 2] < support_height(body, s.theta_x, s.theta_z) + cfg.on_floor_margin
+            v, h = decide(self.ai, s, self.ai_config, self.dt)
+            self._v_target = v
+            cs = self.control_state
+            control_kernel(self._qpos, self._qvel, on_floor, v, h, cs.mode, cs.timer, cs.stand_from,
+                           self._params, self.dt, self._forces)
+            self._xfrc[:] = self._forces
+            self._apply_pushes()
+            t1 = time.thread_time()
+            mujoco.mj_step(self.model, self.data, nstep=cfg.substeps)
+            t2 = time.thread_time()
+            self.time += self.dt
+            self.frame += 1
+            self.state = s = rigid_state(self._qpos, self._qvel)
+            self.d_side, self.d_front = travel(self.d_side, self.d_front, s.vel, s.forward, s.left, self.dt)
+            if self.frame % 30 == 0 and not np.all(np.isfinite(self._qpos)):
+                bad = int(np.flatnonzero(~np.all(np.isfinite(self._qpos), axis=1))[0])
+                raise SimulationDivergedError(f"character {bad} diverged at frame {self.frame}",
+                                              step=self.frame, body=str(bad))
+            t3 = time.thread_time()
+            if self.posing:
+                self._pose()
+            t4 = time.thread_time()
+            tm["control"] += (t1 - t0) + (t3 - t2)
+            tm["physics"] += t2 - t1
+            tm["posing"] += t4 - t3
+            if self._record is not None:
+                self._record.append((self.root_pos.astype(np.float32), self.local_rot.astype(np.float32),
+                                     self.control_state.mode.astype(np.int8), self._qpos.astype(np.float32)))
+
+    def _pose(self) -> None:
+        """Map every body's state into Q and pose it from the keyframe set in its frame Sr (section 5)."""
+        s, cfg = self.state, self.config
+        p = self.points
+        p[:, 0], p[:, 1] = s.theta_x, s.theta_z
+        p[:, 2], p[:, 3] = phases(self.d_side, self.d_front, self.keyframes.stride)
+        target = np.zeros_like(self.behaviour_weights)
+        target[:, 0] = 1.0
+        mode = self.control_state.mode
+        still = ((mode == BALANCE) & (np.hypot(s.v_forward, s.v_side) < cfg.still_speed)
+                 & (np.linalg.norm(self._v_target, axis=1) < 0.05) & (np.abs(s.theta_x) < 0.1))
+        standing = (mode == STANDING_UP) | still
+        target[standing] = 0.0
+        target[standing, self._stand_b] = 1.0
+        step = min(1.0, self.dt / cfg.behaviour_ease)
+        bw = self.behaviour_weights
+        bw += np.clip(target - bw, -step, step)
+        bw /= bw.sum(axis=1, keepdims=True)
+        a_side = s.v_side ** 2 + (3.0 * s.theta_z) ** 2
+        a_fwd = s.v_forward ** 2 + (3.0 * s.theta_x) ** 2
+        target_w = a_side / (a_side + a_fwd + 0.02)
+        self.side_weight += (target_w - self.side_weight) * (1.0 - 0.5 ** (self.dt / cfg.side_halflife))
+        interpolate(self.keyframes, p, bw, self.side_weight, out=(self.local_rot, self.root_pos),
+                    frame=(s.r, s.quat))
+
+    # ------------------------------------------------------------------ recording
+    def start_recording(self) -> None:
+        """Keep every frame's poses, modes and body states from now on (memory: ~0.4 kB per
+        character-frame)."""
+        self._record = []
+        if self.posing:
+            self._record.append((self.root_pos.astype(np.float32), self.local_rot.astype(np.float32),
+                                 self.control_state.mode.astype(np.int8), self._qpos.astype(np.float32)))
+
+    def recording(self) -> dict[str, np.ndarray]:
+        """The recorded frames: ``root_pos (F, N, 3)``, ``local_rot (F, N, J, 4)``, ``mode (F, N)``,
+        ``body (F, N, 7)`` (centre of mass and rotation)."""
+        if not self._record:
+            raise ParameterError("nothing recorded: call start_recording() before step()")
+        cols = list(zip(*self._record))
+        return {"root_pos": np.stack(cols[0]), "local_rot": np.stack(cols[1]), "mode": np.stack(cols[2]),
+                "body": np.stack(cols[3])}
+
+    def motions(self, names=None) -> list:
+        """One :class:`~kinodyn.motion.Motion` per character from the recording."""
+        from kinodyn.motion import Motion
+
+        rec = self.recording()
+        names = names or [f"character_{i:04d}" for i in range(self.n)]
+        return [Motion(skeleton=self.keyframes.skeleton, root_pos=rec["root_pos"][:, i].astype(np.float64),
+                       local_rot=rec["local_rot"][:, i].astype(np.float64), fps=self.config.fps, name=names[i])
+                for i in range(self.n)]

@@ -1,0 +1,263 @@
+"""Batched interpolation of a multidimensional keyframe set around points of Q (sections 5.1, 5.2).
+
+Mitake et al., section 5.1: the point of the keyframe space a body's state maps to is posed by
+interpolating the keyframes around it. The scheme (the paper leaves the interpolant open):
+
+* within one behaviour and plane, keyframes are grouped into levels of equal tilt (:mod:`keyframes`);
+  each level is a periodic function of the phase, a Catmull-Rom spline through its keyframes (a level
+  with one keyframe is constant), and neighbouring levels are blended linearly in tilt (clamped at
+  the outermost levels). It passes through every keyframe exactly and is continuous everywhere;
+* the two planes of a behaviour (forward ``(Theta_x, D_z)`` and side ``(Theta_z, D_x)``) are blended
+  by how far the point is from each: ``w_side = d_forward / (d_forward + d_side)``, with ``d`` the
+  distance in tilt (radians / ``tilt_scale``) and in phase (cyclic, / ``phase_scale``) to the plane;
+  the point where the planes meet belongs to the forward plane (a keyframe there is shared by both:
+  :mod:`keyframes` adds it to the side plane too, so the blend is continuous there);
+  A caller may give its own side weights (the crowd weighs by the direction of travel and tilt, so
+  a phase left over from an earlier sidestep does not show while walking forward);
+* the behaviours (the values of B) are all adjacent: their poses are blended with the weights given
+  (one-hot for a single behaviour; the crowd eases between them when the behaviour changes).
+
+Quaternions are blended as weighted sums aligned to one hemisphere and normalized (exact where one
+weight is 1). Shapes: N points, J joints, B behaviours. One compiled kernel runs the whole batch
+(numba, parallel over characters: pin ``numba.set_num_threads`` to measure one core).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from kinodyn.crowd.keyframes import KeyframeSet
+from kinodyn.errors import ParameterError
+
+__all__ = ["interpolate", "to_world"]
+
+TILT_SCALE = 0.5
+PHASE_SCALE = 0.25
+
+
+#: a caller's side weight under this (or over one minus this) poses one plane only; the weight is
+#: stretched in between, so the blend stays continuous.
+SIDE_DEAD_ZONE = 0.1
+MAX_TERMS = 32  # behaviours (2 blended) x planes (2) x levels (2) x spline keys (4)
+
+
+@numba.njit(cache=True, inline="always")
+def _push(k, w, idx, wts, m):
+    idx[m] = k
+    wts[m] = w
+    return m + 1
+
+
+@numba.njit(cache=True)
+def _level_terms(lv, phase, w, key_phase, level_start, level_count, idx, wts, m):
+    """Add the Catmull-Rom terms of one periodic level at ``phase``; return the new term count."""
+    s, c = level_start[lv], level_count[lv]
+    if c == 1:
+        return _push(s, w, idx, wts, m)
+    k = c - 1
+    for i in range(c - 1):
+        if key_phase[s + i] <= phase < key_phase[s + i + 1]:
+            k = i
+            break
+    p0 = key_phase[s + k]
+    p1 = key_phase[s + (k + 1) % c]
+    gap = p1 - p0 if k < c - 1 else p1 + 1.0 - p0
+    d = phase - p0
+    if d < 0.0:
+        d += 1.0
+    t = d / gap
+    t2, t3 = t * t, t * t * t
+    w0, w1 = (-t3 + 2 * t2 - t) * 0.5, (3 * t3 - 5 * t2 + 2) * 0.5
+    w2, w3 = (-3 * t3 + 4 * t2 + t) * 0.5, (t3 - t2) * 0.5
+    if w1 != 0.0:  # first, so an exact keyframe is the reference hemisphere
+        m = _push(s + k, w * w1, idx, wts, m)
+    if w0 != 0.0:
+        m = _push(s + (k - 1 + c) % c, w * w0, idx, wts, m)
+    if w2 != 0.0:
+        m = _push(s + (k + 1) % c, w * w2, idx, wts, m)
+    if w3 != 0.0:
+        m = _push(s + (k + 2) % c, w * w3, idx, wts, m)
+    return m
+
+
+@numba.njit(cache=True)
+def _plane_terms(b, p, tilt, phase, w, plane_start, plane_count, level_tilt, key_phase, level_start,
+                 level_count, idx, wts, m):
+    """Add the terms of one behaviour's plane: its two levels around ``tilt``, blended linearly."""
+    s, c = plane_start[b, p], plane_count[b, p]
+    if tilt <= level_tilt[s] or c == 1:
+        lo, u = s, 0.0
+    elif tilt >= level_tilt[s + c - 1]:
+        lo, u = s + c - 1, 0.0
+    else:
+        lo = s
+        while level_tilt[lo + 1] <= tilt:
+            lo += 1
+        u = (tilt - level_tilt[lo]) / (level_tilt[lo + 1] - level_tilt[lo])
+    if u < 1.0:
+        m = _level_terms(lo, phase, w * (1.0 - u), key_phase, level_start, level_count, idx, wts, m)
+    if u > 0.0:
+        m = _level_terms(lo + 1, phase, w * u, key_phase, level_start, level_count, idx, wts, m)
+    return m
+
+
+@numba.njit(cache=True, inline="always")
+def _cyc(d):
+    return min(d, 1.0 - d)
+
+
+@numba.njit(cache=True)
+def _side_weight(tx, tz, dx, dz, given, tilt_scale, phase_scale):
+    if given >= 0.0:  # a caller's weight, with dead zones at both ends (one plane only: half the work)
+        return min(1.0, max(0.0, (given - SIDE_DEAD_ZONE) / (1.0 - 2.0 * SIDE_DEAD_ZONE)))
+    df = np.sqrt((tz / tilt_scale) ** 2 + (_cyc(dx) / phase_scale) ** 2)
+    dsd = np.sqrt((tx / tilt_scale) ** 2 + (_cyc(dz) / phase_scale) ** 2)
+    return 0.0 if df == 0.0 else df / (df + dsd)
+
+
+@numba.njit(cache=True, fastmath=True)
+def _accumulate(i, m, idx, wts, key_rot, key_root, out_rot, out_root):
+    """Weighted sum of the terms' poses (quaternions on the first term's hemisphere), normalized."""
+    nj = key_rot.shape[1]
+    out_rot[i, :, :] = 0.0
+    out_root[i, :] = 0.0
+    r = idx[0]
+    for t in range(m):
+        k, w = idx[t], wts[t]
+        for c in range(3):
+            out_root[i, c] += w * key_root[k, c]
+        for j in range(nj):
+            d = (key_rot[r, j, 0] * key_rot[k, j, 0] + key_rot[r, j, 1] * key_rot[k, j, 1]
+                 + key_rot[r, j, 2] * key_rot[k, j, 2] + key_rot[r, j, 3] * key_rot[k, j, 3])
+            s = w if d >= 0.0 else -w
+            for c in range(4):
+                out_rot[i, j, c] += s * key_rot[k, j, c]
+    for j in range(nj):
+        nrm = np.sqrt(out_rot[i, j, 0] ** 2 + out_rot[i, j, 1] ** 2 + out_rot[i, j, 2] ** 2 + out_rot[i, j, 3] ** 2)
+        if nrm < 1e-12:
+            out_rot[i, j, 0] = 1.0
+        else:
+            for c in range(4):
+                out_rot[i, j, c] /= nrm
+
+
+@numba.njit(cache=True)
+def _to_frame(i, pos, q, out_rot, out_root):
+    """Show pose ``i`` in the frame (``pos (N, 3)``, ``q (N, 4)``): root rotation and position."""
+    w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    a0, a1, a2, a3 = out_rot[i, 0, 0], out_rot[i, 0, 1], out_rot[i, 0, 2], out_rot[i, 0, 3]
+    out_rot[i, 0, 0] = w * a0 - x * a1 - y * a2 - z * a3
+    out_rot[i, 0, 1] = w * a1 + x * a0 + y * a3 - z * a2
+    out_rot[i, 0, 2] = w * a2 - x * a3 + y * a0 + z * a1
+    out_rot[i, 0, 3] = w * a3 + x * a2 - y * a1 + z * a0
+    vx, vy, vz = out_root[i, 0], out_root[i, 1], out_root[i, 2]
+    tx, ty, tz = 2 * (y * vz - z * vy), 2 * (z * vx - x * vz), 2 * (x * vy - y * vx)
+    out_root[i, 0] = pos[i, 0] + vx + w * tx + (y * tz - z * ty)
+    out_root[i, 1] = pos[i, 1] + vy + w * ty + (z * tx - x * tz)
+    out_root[i, 2] = pos[i, 2] + vz + w * tz + (x * ty - y * tx)
+
+
+@numba.njit(cache=True, parallel=True)
+def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, key_rot, key_phase,
+                   level_tilt, level_start, level_count, plane_start, plane_count, idx, wts, out_rot, out_root,
+                   frame_pos, frame_quat, in_frame):
+    nb = bweights.shape[1]
+    for i in numba.prange(points.shape[0]):
+        tx, tz, dx, dz = points[i, 0], points[i, 1], points[i, 2], points[i, 3]
+        m = 0
+        for b in range(nb):
+            wb = bweights[i, b]
+            if wb == 0.0:
+                continue
+            hf, hs = plane_count[b, 0] > 0, plane_count[b, 1] > 0
+            ws = _side_weight(tx, tz, dx, dz, side_w[i], tilt_scale, phase_scale) if hf and hs else (
+                0.0 if hf else 1.0)
+            if ws < 1.0:
+                m = _plane_terms(b, 0, tx, dz, wb * (1.0 - ws), plane_start, plane_count, level_tilt,
+                                 key_phase, level_start, level_count, idx[i], wts[i], m)
+            if ws > 0.0:
+                m = _plane_terms(b, 1, tz, dx, wb * ws, plane_start, plane_count, level_tilt, key_phase,
+                                 level_start, level_count, idx[i], wts[i], m)
+        _accumulate(i, m, idx[i], wts[i], key_rot, key_root, out_rot, out_root)
+        if in_frame:
+            _to_frame(i, frame_pos, frame_quat, out_rot, out_root)
+
+
+def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
+                tilt_scale: float = TILT_SCALE, phase_scale: float = PHASE_SCALE, frame=None):
+    """Poses in the body frame Sr at points of the keyframe space.
+
+    Args:
+        ks: the keyframe set.
+        points: ``(N, 4)`` coordinates ``(Theta_x, Theta_z, D_x, D_z)``: tilts in radians, phases in
+            ``[0, 1)`` (other values are wrapped with :func:`~kinodyn.crowd.keyframes.periodic`).
+        behaviour: an int or ``(N,)`` ints (indices into ``ks.behaviours``), or ``(N, B)`` weights
+            (rows summing to 1).
+        side_weight: ``(N,)`` weights of the side plane in ``[0, 1]`` (mapped continuously so that
+            weights within :data:`SIDE_DEAD_ZONE` of 0 or 1 pose one plane only); None: from the point
+            (module docstring).
+        out: optional ``(rot (N, J, 4), root (N, 3))`` arrays to fill.
+        tilt_scale, phase_scale: the distance scales of the plane weights.
+        frame: optional ``(body_pos (N, 3), body_quat (N, 4))``: show the poses in these frames Sr
+            (the same as :func:`to_world` afterwards, in the same compiled pass).
+
+    Returns:
+        ``(local_rot (N, J, 4), root (N, 3))``: local rotations (the root's relative to Sr) and the
+        root position in Sr relative to the centre of mass (or in the world, with ``frame``).
+    """
+    pts = np.array(points, dtype=np.float64, ndmin=2)
+    if pts.ndim != 2 or pts.shape[1] != 4:
+        raise ParameterError(f"points must have shape (N, 4), got {np.shape(points)}")
+    if not np.all(np.isfinite(pts)):
+        raise ParameterError("points must be finite")
+    n, nb = pts.shape[0], len(ks.behaviours)
+    pts[:, 2:] = pts[:, 2:] - np.floor(pts[:, 2:])
+    pts[:, 2:][pts[:, 2:] >= 1.0] = 0.0
+    bw = _behaviour_weights(behaviour, n, nb)
+    if side_weight is None:
+        sw = np.full(n, -1.0)
+    else:
+        sw = np.clip(np.broadcast_to(np.asarray(side_weight, np.float64), (n,)), 0.0, 1.0)
+    rot, root = out if out is not None else (np.empty((n, ks.key_rot.shape[1], 4)), np.empty((n, 3)))
+    idx = np.empty((n, MAX_TERMS), np.int64)
+    wts = np.empty((n, MAX_TERMS))
+    if frame is None:
+        fpos, fquat, in_frame = np.zeros((1, 3)), np.zeros((1, 4)), False
+    else:
+        fpos, fquat, in_frame = np.ascontiguousarray(frame[0], np.float64), np.ascontiguousarray(frame[1], np.float64), True
+        if fpos.shape != (n, 3) or fquat.shape != (n, 4):
+            raise ParameterError(f"frame must be ((N, 3), (N, 4)) arrays for N = {n}, got {fpos.shape}, {fquat.shape}")
+    _interp_kernel(pts, bw, np.ascontiguousarray(sw), float(tilt_scale), float(phase_scale), ks.key_root,
+                   ks.key_rot, ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start,
+                   ks.plane_count, idx, wts, rot, root, fpos, fquat, in_frame)
+    return rot, root
+
+
+def _behaviour_weights(behaviour, n: int, nb: int) -> np.ndarray:
+    b = np.asarray(behaviour)
+    if b.ndim == 2:
+        if b.shape != (n, nb):
+            raise ParameterError(f"behaviour weights must have shape ({n}, {nb}), got {b.shape}")
+        return np.ascontiguousarray(b, dtype=np.float64)
+    idx = np.broadcast_to(b.astype(np.int64), (n,))
+    if np.any((idx < 0) | (idx >= nb)):
+        raise ParameterError(f"behaviour indices must lie in [0, {nb}), got {np.unique(idx).tolist()}")
+    bw = np.zeros((n, nb))
+    bw[np.arange(n), idx] = 1.0
+    return bw
+
+
+def to_world(rot: np.ndarray, root: np.ndarray, body_pos: np.ndarray, body_quat: np.ndarray) -> None:
+    """Show poses in the bodies' frames Sr (section 5.1), in place.
+
+    Args:
+        rot: ``(N, J, 4)`` local rotations; the root's becomes its world rotation.
+        root: ``(N, 3)`` root positions in Sr; become world positions.
+        body_pos: ``(N, 3)`` centres of mass.
+        body_quat: ``(N, 4)`` body rotations.
+    """
+    from kinodyn.math import quat
+
+    rot[:, 0] = quat.mul(body_quat, rot[:, 0])
+    root[:] = body_pos + quat.mul_vec(body_quat, root)
