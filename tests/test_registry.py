@@ -17,11 +17,14 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 
 
 def test_packages_register_their_commands_benchmarks_and_demo_parts():
-    assert registry.commands() == {"blend": "kinodyn.blend.command", "body": "kinodyn.physics.command",
-                                   "view": "kinodyn.commands.view", "render": "kinodyn.commands.render"}
-    assert registry.benchmarks() == {"blend": "kinodyn.blend.bench", "io": "kinodyn.io.bench",
-                                     "physics": "kinodyn.physics.bench", "viz": "kinodyn.viz.bench"}
-    assert list(registry.demo_parts()) == ["clips", "physics", "blend", "viewer"]
+    """The landed capabilities' parts are found (a new capability adds its own without editing this)."""
+    assert {"blend": "kinodyn.blend.command", "body": "kinodyn.physics.command",
+            "view": "kinodyn.commands.view", "render": "kinodyn.commands.render"}.items() <= registry.commands().items()
+    assert {"blend": "kinodyn.blend.bench", "io": "kinodyn.io.bench", "physics": "kinodyn.physics.bench",
+            "viz": "kinodyn.viz.bench"}.items() <= registry.benchmarks().items()
+    parts = list(registry.demo_parts())
+    landed = [p for p in parts if p in ("clips", "physics", "blend", "viewer")]
+    assert landed == ["clips", "physics", "blend", "viewer"] and parts[-1] == "viewer"
     assert bench.names() == list(registry.benchmarks())
 
 
