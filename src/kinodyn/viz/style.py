@@ -19,6 +19,7 @@ __all__ = [
     "IMPACT_COLOR",
     "PALETTE",
     "PHASE_COLORS",
+    "STAGE_COLORS",
     "character_colors",
     "color",
     "rgb",
@@ -31,6 +32,9 @@ PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b
 
 #: Support-phase colours (labels of the support-phase sequence).
 PHASE_COLORS = {"LS": "#59a14f", "RS": "#f28e2b", "DS": "#4e79a7", "flight": "#c9ced6", "Err": "#e15759"}
+
+#: Stage colours of a character's timeline (what drives it: the dynamic response fills these).
+STAGE_COLORS = {"motion data": "#76b7b2", "simulation": "#b07aa1", "transition": "#edc948", "clip": "#9c755f"}
 
 CONTACT_COLOR = "#f2b705"  #: foot-contact markers
 IMPACT_COLOR = "#d62728"  #: impact points and impulse arrows

@@ -11,7 +11,11 @@ Inputs accepted wherever ``motions`` is asked for: one :class:`~kinodyn.motion.M
 
 Overlays: the strings ``"contacts"`` (foot contacts detected by :func:`kinodyn.contacts.detect`),
 ``"phases"`` (support-phase bars LS/RS/DS/flight derived from them), ``"trajectories"`` (root paths on
-the floor), or objects: :class:`Contacts`, :class:`Impact`, :class:`Phases`, :class:`Trajectory`.
+the floor), ``"com"`` (centre of mass and its ground projection), ``"support"`` (support polygon of the
+feet in contact), or objects: :class:`Contacts`, :class:`Impact`, :class:`Phases`, :class:`Trajectory`
+and, from :mod:`kinodyn.viz.objects`, :class:`~kinodyn.viz.objects.Prop`,
+:class:`~kinodyn.viz.objects.Forces`, :class:`~kinodyn.viz.objects.Marker`,
+:class:`~kinodyn.viz.objects.Stages`.
 """
 
 from __future__ import annotations
@@ -27,6 +31,17 @@ from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.kinematics import end_site_positions, forward_kinematics
 from kinodyn.motion import Motion
 from kinodyn.viz import style
+from kinodyn.viz.objects import (
+    Forces,
+    Marker,
+    Prop,
+    Stages,
+    check_prop,
+    face_points,
+    lane_offsets,
+    lane_view,
+    point_sides,
+)
 
 __all__ = [
     "LAYOUTS",
@@ -44,8 +59,8 @@ __all__ = [
     "support_phases",
 ]
 
-OVERLAY_NAMES = ("contacts", "phases", "trajectories")
-LAYOUTS = ("world", "row", "grid")
+OVERLAY_NAMES = ("contacts", "phases", "trajectories", "com", "support")
+LAYOUTS = ("world", "row", "grid", "lanes")
 
 _MSG_MOTIONS = "motions must be a Motion, an Actor, a sequence of them or a mapping name -> Motion, got {}"
 
@@ -62,12 +77,14 @@ class Actor:
         name: label in the legend and above the head (default: the motion's name or ``character i``).
         color: ``"#rrggbb"`` (default: the palette in order).
         start: scene time (s) at which the clip's first frame plays; before it the first pose is held.
+        ghost: draw it translucent, as a reference the others are compared with.
     """
 
     motion: Motion
     name: str | None = None
     color: str | None = None
     start: float = 0.0
+    ghost: bool = False
 
 
 @dataclass(frozen=True)
@@ -153,6 +170,10 @@ class Character:
         joints: number of joints ``J`` (points ``J..P-1`` are end sites).
         feet: ``{"left": idx, "right": idx}`` point indices of each foot, or ``{}``.
         contacts: ``(F, 2)`` bool foot contacts, or ``None``.
+        ghost: drawn translucent (a reference).
+        sides: ``(P,)`` int8 side of each point (-1 left, 0 centre, 1 right), or ``None``.
+        face: ``{"head": i, "left": j, "right": k}`` points that say where the head faces, or ``{}``.
+        point_names: ``P`` names of the points (joints, then ``<joint>_end`` end sites).
     """
 
     name: str
@@ -165,6 +186,10 @@ class Character:
     joints: int
     feet: dict = field(default_factory=dict)
     contacts: np.ndarray | None = None
+    ghost: bool = False
+    sides: np.ndarray | None = None
+    face: dict = field(default_factory=dict)
+    point_names: tuple[str, ...] = ()
 
     @property
     def num_frames(self) -> int:
@@ -190,7 +215,9 @@ class World:
 
     Attributes:
         characters: the :class:`Character` list.
-        impacts, phases, trajectories: overlays.
+        impacts, phases, trajectories, props, forces, markers: overlays.
+        view: ``(3,)`` unit vector from the characters towards where the camera starts, or ``None`` for
+            the default three-quarter side view (``"lanes"`` start in front, to see every lane).
         show: names of overlays switched on at start (``contacts``, ``phases``, ``trajectories``...).
         fps: frame rate of the scene clock (the highest character fps).
         duration: seconds from 0 to the last frame of the longest character.
@@ -206,6 +233,10 @@ class World:
     duration: float = 0.0
     name: str = ""
     floor: float = 0.0
+    props: tuple[Prop, ...] = ()
+    forces: tuple[Forces, ...] = ()
+    markers: tuple[Marker, ...] = ()
+    view: tuple[float, float, float] | None = None
 
     @property
     def num_frames(self) -> int:
@@ -343,7 +374,7 @@ def _actors(motions, names, colors) -> list[Actor]:
     out = []
     for i, a in enumerate(acts):
         nm = (names[i] if names is not None else None) or a.name or a.motion.name or f"character {i + 1}"
-        out.append(Actor(a.motion, str(nm), cols[i], float(a.start)))
+        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost)))
     return out
 
 
@@ -398,6 +429,65 @@ def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> l
     return out
 
 
+def _classify(overlays) -> tuple[set, set, dict]:
+    """Sort overlays by kind: (overlays switched on, overlays computed per character, objects by kind)."""
+    overlays = () if overlays is None else ([overlays] if isinstance(overlays, (str, Impact, Contacts, Phases,
+                                                                                 Trajectory, Prop, Forces,
+                                                                                 Marker, Stages))
+                                            else list(overlays))
+    wanted = set()  # overlays switched on in the viewer
+    auto = set()  # overlays computed here for every character
+    got = {"impacts": [], "phases": [], "trajectories": [], "contacts": {}, "props": [], "forces": [],
+           "markers": [], "stages": []}
+    for ov in overlays:
+        if isinstance(ov, str):
+            if ov not in OVERLAY_NAMES:
+                raise ParameterError(f"unknown overlay {ov!r}; overlays: {', '.join(OVERLAY_NAMES)} "
+                                     "or Impact/Contacts/Phases/Trajectory/Prop/Forces/Marker/Stages objects")
+            wanted.add(ov)
+            auto.add(ov)
+        elif isinstance(ov, Impact):
+            p = np.asarray(ov.point, dtype=np.float64)
+            j = np.asarray(ov.impulse, dtype=np.float64)
+            if p.shape != (3,) or j.shape != (3,) or not (np.all(np.isfinite(p)) and np.all(np.isfinite(j))):
+                raise ParameterError(f"Impact point and impulse must be finite (3,) vectors, got {p.shape} "
+                                     f"and {j.shape}")
+            got["impacts"].append(ov)
+        elif isinstance(ov, Contacts):
+            got["contacts"][ov.character] = ov.labels
+            wanted.add("contacts")
+        elif isinstance(ov, (Phases, Stages)):
+            if isinstance(ov, Stages):
+                spans, cols = ov.colored_spans()
+                got["stages"].append(Phases(spans, ov.label, ov.character, cols))
+            else:
+                got["phases"].append(ov)
+            wanted.add("phases")
+        elif isinstance(ov, Trajectory):
+            pts = np.asarray(ov.points, dtype=np.float64)
+            if pts.ndim != 2 or pts.shape[1] != 3:
+                raise ParameterError(f"Trajectory points must have shape (N, 3), got {pts.shape}")
+            got["trajectories"].append(ov)
+            wanted.add("trajectories")
+        elif isinstance(ov, Prop):
+            check_prop(ov, len(got["props"]))
+            got["props"].append(ov)
+            wanted.add("props")
+        elif isinstance(ov, Forces):
+            ov.arrays()
+            got["forces"].append(ov)
+            wanted.add("forces")
+        elif isinstance(ov, Marker):
+            if not np.isfinite(ov.time):
+                raise ParameterError(f"Marker time must be finite, got {ov.time}")
+            got["markers"].append(ov)
+        else:
+            raise ParameterError(f"overlays must be names or overlay objects, got {type(ov).__name__}")
+    if got["impacts"]:
+        wanted.add("impacts")
+    return wanted, auto, got
+
+
 def build_world(motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
                 name: str = "") -> World:
     """Prepare characters and overlays for drawing.
@@ -408,7 +498,9 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         names: one label per character (overrides motion and actor names).
         colors: one colour per character (``None`` entries take the palette).
         layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
-            root position moved to its slot) or ``"grid"`` (rows and columns); for clip galleries.
+            root position moved to its slot), ``"grid"`` (rows and columns), for clip galleries; or
+            ``"lanes"`` (side by side across the direction of travel, for comparing movers:
+            :func:`kinodyn.viz.objects.lane_offsets`).
         name: scene name.
 
     Raises:
@@ -417,43 +509,11 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
     if layout not in LAYOUTS:
         raise ParameterError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
     actors = _actors(motions, names, colors)
-    overlays = () if overlays is None else ([overlays] if isinstance(overlays, (str, Impact, Contacts, Phases,
-                                                                                 Trajectory)) else list(overlays))
-    wanted = set()  # overlays switched on in the viewer
-    auto = set()  # overlays computed here for every character
-    impacts, phases, trajs, contacts = [], [], [], {}
-    for ov in overlays:
-        if isinstance(ov, str):
-            if ov not in OVERLAY_NAMES:
-                raise ParameterError(f"unknown overlay {ov!r}; overlays: {', '.join(OVERLAY_NAMES)} "
-                                     "or Impact/Contacts/Phases/Trajectory objects")
-            wanted.add(ov)
-            auto.add(ov)
-        elif isinstance(ov, Impact):
-            p = np.asarray(ov.point, dtype=np.float64)
-            j = np.asarray(ov.impulse, dtype=np.float64)
-            if p.shape != (3,) or j.shape != (3,) or not (np.all(np.isfinite(p)) and np.all(np.isfinite(j))):
-                raise ParameterError(f"Impact point and impulse must be finite (3,) vectors, got {p.shape} "
-                                     f"and {j.shape}")
-            impacts.append(ov)
-        elif isinstance(ov, Contacts):
-            contacts[ov.character] = ov.labels
-            wanted.add("contacts")
-        elif isinstance(ov, Phases):
-            phases.append(ov)
-            wanted.add("phases")
-        elif isinstance(ov, Trajectory):
-            pts = np.asarray(ov.points, dtype=np.float64)
-            if pts.ndim != 2 or pts.shape[1] != 3:
-                raise ParameterError(f"Trajectory points must have shape (N, 3), got {pts.shape}")
-            trajs.append(ov)
-            wanted.add("trajectories")
-        else:
-            raise ParameterError(f"overlays must be names or overlay objects, got {type(ov).__name__}")
-    if impacts:
-        wanted.add("impacts")
+    wanted, auto, got = _classify(overlays)
+    impacts, phases, contacts = got["impacts"], got["phases"], got["contacts"]
     n = len(actors)
-    for idx in list(contacts) + [o.character for o in impacts + phases if o.character is not None]:
+    forces = got["forces"]
+    for idx in list(contacts) + [o.character for o in impacts + phases + forces if o.character is not None]:
         if not (isinstance(idx, (int, np.integer)) and 0 <= idx < n):
             raise ParameterError(f"overlay character index must be in 0..{n - 1}, got {idx!r}")
 
@@ -462,13 +522,13 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         pos, parents, pnames = body_points(a.motion)
         pos_list.append(pos)
         radii = bone_radii(pnames, parents, a.motion.skeleton.height())
-        prepared.append((pos, parents, radii))
-    offsets = _layout_offsets(pos_list, layout)
+        prepared.append((pos, parents, radii, pnames))
+    offsets = lane_offsets(pos_list) if layout == "lanes" else _layout_offsets(pos_list, layout)
     chars = []
-    for i, (a, (pos, parents, radii), off) in enumerate(zip(actors, prepared, offsets)):
+    for i, (a, (pos, parents, radii, pnames), off) in enumerate(zip(actors, prepared, offsets)):
         m = a.motion
         lab = contacts.get(i)
-        if lab is None and ("contacts" in auto or "phases" in auto):
+        if lab is None and ("contacts" in auto or "phases" in auto or "support" in auto):
             from kinodyn import contacts as _contacts
 
             try:
@@ -480,11 +540,17 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
             if lab.shape != (m.num_frames, 2):
                 raise ParameterError(f"contacts of character {i} must have shape ({m.num_frames}, 2), got "
                                      f"{lab.shape}")
+        sides = point_sides(pnames)
         chars.append(Character(a.name, a.color, m.fps, a.start, pos + off, parents, radii, m.num_joints,
-                               _feet_points(m), lab))
+                               _feet_points(m), lab, a.ghost, sides, face_points(pnames, sides, pos), tuple(pnames)))
         if "phases" in auto and lab is not None and not any(p.character == i for p in phases):
             phases.append(Phases(support_phases(lab, m.fps, a.start), f"{a.name} support", i))
     fps = max(c.fps for c in chars)
     duration = max(c.end_time for c in chars)
-    return World(tuple(chars), tuple(sorted(impacts, key=lambda x: x.time)), tuple(phases), tuple(trajs),
-                 frozenset(wanted), fps, max(duration, 0.0), name)
+    for p in got["props"]:
+        duration = max(duration, p.start + (len(np.atleast_2d(p.positions)) - 1) / p.fps)
+    view = lane_view(pos_list) if layout == "lanes" else None
+    return World(tuple(chars), tuple(sorted(impacts, key=lambda x: x.time)), tuple(phases + got["stages"]),
+                 tuple(got["trajectories"]), frozenset(wanted), fps, max(duration, 0.0), name,
+                 props=tuple(got["props"]), forces=tuple(forces),
+                 markers=tuple(sorted(got["markers"], key=lambda m: m.time)), view=view)
