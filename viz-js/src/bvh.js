@@ -1,7 +1,7 @@
 // A BVH file dropped on the page becomes a character: three.js's BVHLoader parses it, an animation
 // mixer samples every frame, and the world positions of joints and end sites are converted to the
 // viewer's convention (Z up, metres: BVH is Y up, usually in centimetres or inches; the unit is the one
-// that makes the body closest to 1.7 m tall, as kinodyn.io.bvh does).
+// that makes the body closest to 1.7 m tall, and the axes are turned as kinodyn.io.bvh turns them).
 
 import * as THREE from 'three';
 import { BVHLoader } from 'three/addons/loaders/BVHLoader.js';
@@ -38,17 +38,24 @@ export function bvhCharacter(text, name, color) {
   const track = clip.tracks[0];
   const F = track ? track.times.length : 1;
   const dt = track && F > 1 ? track.times[1] - track.times[0] : 1 / 30;
+  // BVHLoader adds the root's OFFSET to its position channels; the channels alone place the root (as
+  // kinodyn.io.bvh reads them).
+  const o = root.position.clone();
   const mixer = new THREE.AnimationMixer(root);
-  mixer.clipAction(clip).play();
+  const action = mixer.clipAction(clip);
+  action.setLoop(THREE.LoopOnce, 1);
+  action.clampWhenFinished = true;  // the last frame is at the clip's end: hold it, do not wrap to the first
+  action.play();
   const raw = new Float32Array(F * P * 3);
   const v = new THREE.Vector3();
   for (let f = 0; f < F; f++) {
-    mixer.setTime(f * dt);
+    mixer.setTime(Math.min(f * dt, clip.duration));
     root.updateMatrixWorld(true);
     for (let p = 0; p < P; p++) {
       bones[p].getWorldPosition(v);
-      const o = 3 * (f * P + p);
-      raw[o] = v.x; raw[o + 1] = -v.z; raw[o + 2] = v.y;  // Y up -> Z up
+      const k = 3 * (f * P + p);
+      v.sub(o);
+      raw[k] = v.z; raw[k + 1] = v.x; raw[k + 2] = v.y;  // a Y-up file's x, y, z are kinodyn's y, z, x
     }
   }
   // Unit: the height of the first frame closest to 1.7 m.

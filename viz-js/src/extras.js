@@ -140,7 +140,7 @@ export class Forces {
       // first index with ts[i] > t - hold (times are sorted)
       let lo = 0, hi = ts.length;
       while (lo < hi) { const m = (lo + hi) >> 1; if (ts[m] <= t - s.hold) lo = m + 1; else hi = m; }
-      for (let i = lo; i < ts.length && ts[i] <= t + 1e-9 && n < 64; i++, n++) {
+      for (let i = lo; i < ts.length && ts[i] <= t + 1e-4 && n < 64; i++, n++) {
         const g = this.arrow(n);
         const P = _v.set(s.points[3 * i], s.points[3 * i + 1], s.points[3 * i + 2]);
         _w.set(s.vectors[3 * i], s.vectors[3 * i + 1], s.vectors[3 * i + 2]);

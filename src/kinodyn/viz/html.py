@@ -227,7 +227,7 @@ def _prop_data(p: Prop, i: int, compress: bool) -> dict:
 
 def _forces_data(f: Forces) -> dict:
     t, p, v = f.arrays()
-    return {"t": _r(t, 4), "points": _r(p, 4), "vectors": _r(v, 4), "kind": f.kind, "scale": float(f.scale),
+    return {"t": _r(t, 6), "points": _r(p, 4), "vectors": _r(v, 4), "kind": f.kind, "scale": float(f.scale),
             "hold": float(f.hold), "char": f.character, "color": style.color(f.color), "label": f.label}
 
 
