@@ -137,16 +137,16 @@ function setArrow(arrow, a, b, r) {
 
 const FLOOR_COLOR = 0xeeebe4;
 
-// A floor grid of size x size one-metre squares in the XY plane, centre lines in colour c1, the others
+// A floor grid of size x size metres in squares of `step` metres in the XY plane, centre lines in colour c1, the others
 // in c2, drawn at the given opacity over a floor of colour `under`: the colours are blended with the
 // floor's here (in display space, as the blending of a transparent grid would) so that the grid is an
 // opaque draw.
-function makeGrid(size, c1, c2, under, opacity) {
+function makeGrid(size, c1, c2, under, opacity, step = 1) {
   const h = size / 2, pos = [], col = [];
   const floor = new THREE.Color().setHex(under, THREE.LinearSRGBColorSpace);
   const mix = (c) => new THREE.Color().setHex(c, THREE.LinearSRGBColorSpace).lerp(floor, 1 - opacity);
   const k1 = mix(c1), k2 = mix(c2);
-  for (let i = 0; i <= size; i++) {
+  for (let i = 0; i <= size; i += step) {
     const k = -h + i, c = 2 * i === size ? k1 : k2;
     pos.push(-h, k, 0, h, k, 0, k, -h, 0, k, h, 0);
     for (let v = 0; v < 4; v++) col.push(c.r, c.g, c.b);
@@ -176,7 +176,11 @@ function makeGrid(size, c1, c2, under, opacity) {
 // character is drawn with the coarsest capsule whose outline stays within about half a pixel of a
 // true circle at its current size on screen (CAPSULE_LODS: segments around the axis, rings from pole to
 // equator, and the largest on-screen bone radius in pixels it is used for).
+// Bones thinner than this on screen (radius in pixels) are left out: a crowd far away is drawn with
+// its trunk and limbs only.
+const MIN_BONE_PX = 0.3;
 const CAPSULE_LODS = [
+  { S: 4, H: 1, maxPx: 0.9 },
   { S: 6, H: 2, maxPx: 2 },
   { S: 10, H: 4, maxPx: 8 },
   { S: 16, H: 6, maxPx: Infinity },
@@ -324,6 +328,7 @@ class Bodies {
       // Bones are sorted thickest first: each level is one run of them.
       for (let b = 0; b < ch.bones.length;) {
         const rpx = rad[ch.bones[b]] * ppm;
+        if (rpx < MIN_BONE_PX) break;  // this bone and the thinner ones after it cover under a pixel
         let l = 0;
         while (rpx > CAPSULE_LODS[l].maxPx) l++;
         ch.lod = Math.max(ch.lod, l);
@@ -470,9 +475,11 @@ class Character {
   }
 
   // Local (fractional) frame at world time t.
+  // A looping clip starts again after its last frame (period F / fps); others hold it.
   localFrame(t) {
-    const f = (t - this.spec.start) * this.spec.fps;
-    return Math.min(Math.max(f, 0), this.F - 1);
+    const f = Math.max((t - this.spec.start) * this.spec.fps, 0);
+    if (this.spec.loop && this.F > 1) return Math.min(f % this.F, this.F - 1);
+    return Math.min(f, this.F - 1);
   }
 
   // The pose at scene time t into out (P * 3), moved as the in-place and snap-to-floor toggles say.
@@ -875,7 +882,9 @@ class Viewer {
     const plane = new THREE.Mesh(new THREE.PlaneGeometry(size * 1.6, size * 1.6),
       displaySpace(new THREE.MeshBasicMaterial({ color: FLOOR_COLOR })));
     plane.position.set(cx, cy, floor - 0.001);
-    const grid = makeGrid(size, 0x7d8792, 0xaeb6bf, FLOOR_COLOR, 1.0);
+    // One-metre squares; five-metre ones on a big floor (a crowd's), where 1 m lines would be a blur.
+    const step = size > 40 ? 5 : 1;
+    const grid = makeGrid(step > 1 ? Math.ceil(size / 10) * 10 : size, 0x7d8792, 0xaeb6bf, FLOOR_COLOR, 1.0, step);
     grid.position.set(cx, cy, floor + 0.001);
     grid.renderOrder = 1;  // after the floor
     // World axes at the origin: X red, Y green (short, on the floor).

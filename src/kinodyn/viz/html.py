@@ -92,6 +92,7 @@ class Scene:
     names: Sequence[str] | None = None
     colors: Sequence[str] | None = None
     layout: str = "world"
+    loop_clips: bool = False
 
 
 @dataclass(frozen=True)
@@ -192,7 +193,7 @@ def scene_data(world: World, compress: bool = True, impulse_scale: float = 0.02)
                  "feet": {s: [int(i) for i in idx] for s, idx in c.feet.items()}, "contacts": None,
                  "ghost": bool(c.ghost), "face": {k: int(v) for k, v in c.face.items()},
                  "sides": [int(v) for v in c.sides] if c.sides is not None else None,
-                 "pointNames": list(c.point_names)}
+                 "pointNames": list(c.point_names), "loop": bool(c.loop)}
         if c.contacts is not None:
             bits = c.contacts[:, 0].astype(np.uint8) | (c.contacts[:, 1].astype(np.uint8) << 1)
             entry["contacts"] = _encode_bytes(bits, compress)
@@ -242,7 +243,7 @@ def to_html(motions=None, overlays=("contacts",), **kwargs) -> str:
 def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, title: str | None = None,
           layout: str = "world", scenes: Sequence[Scene] | None = None, body: str = "capsules",
           camera: str = "follow", autoplay: bool = True, loop: bool = True, compress: bool = True,
-          impulse_scale: float = 0.02, curves: bool = False) -> tuple[str, list[World]]:
+          impulse_scale: float = 0.02, curves: bool = False, loop_clips: bool = False) -> tuple[str, list[World]]:
     if body not in STYLES:
         raise ParameterError(f"body must be one of {', '.join(STYLES)}, got {body!r}")
     if camera not in CAMERAS:
@@ -252,7 +253,7 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
     if scenes is None:
         if motions is None:
             raise ParameterError("give motions or scenes")
-        scenes = [Scene(motions, overlays, "", names, colors, layout)]
+        scenes = [Scene(motions, overlays, "", names, colors, layout, loop_clips)]
     elif motions is not None:
         raise ParameterError("give motions or scenes, not both")
     if not scenes:
@@ -260,7 +261,7 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
     script = _asset(_BUNDLE)
     template = _asset(_TEMPLATE)
     worlds = [build_world(s.motions, s.overlays, names=s.names, colors=s.colors, layout=s.layout,
-                          name=s.name or f"scene {i + 1}") for i, s in enumerate(scenes)]
+                          name=s.name or f"scene {i + 1}", loop_clips=s.loop_clips) for i, s in enumerate(scenes)]
     show = set().union(*(w.show for w in worlds))
     title = title or (worlds[0].characters[0].name if len(worlds) == 1 and len(worlds[0].characters) == 1
                       else "kinodyn")
@@ -307,6 +308,8 @@ def write(path, motions=None, overlays=("contacts",), **kwargs) -> ViewerPage:
         compress: zlib-compress the motion data (needs ``DecompressionStream``: every current browser).
         impulse_scale: impulse arrow length in metres per N s (clamped to 0.25 .. 1.2 m).
         curves: open the curves panel (joint speeds, root and foot heights) at start.
+        loop_clips: clips shorter than the scene start again after their last frame (else they hold their
+            last pose); an :class:`Actor`'s ``loop`` overrides it.
 
     Returns:
         :class:`ViewerPage` with the path and the file size.

@@ -273,11 +273,11 @@ def lane_view(chars: Sequence[np.ndarray]) -> tuple[float, float, float]:
     """Where a camera starts for lanes: in front of the characters, a little to their right and above,
     so that the lanes do not hide each other (unit vector from the characters to the camera)."""
     d = travel_direction(chars)
-    v = np.array([0.8 * d[0] + 0.35 * d[1], 0.8 * d[1] - 0.35 * d[0], 0.55])
+    v = np.array([0.85 * d[0] + 0.2 * d[1], 0.85 * d[1] - 0.2 * d[0], 0.5])
     return tuple(float(x) for x in v / np.linalg.norm(v))
 
 
-def lane_offsets(chars: Sequence[np.ndarray], gap: float = 0.6) -> list[np.ndarray]:
+def lane_offsets(chars: Sequence[np.ndarray], gap: float = 0.9) -> list[np.ndarray]:
     """``(3,)`` floor offsets that put characters in lanes side by side *across* their direction of travel.
 
     The direction of travel is the mean of every character's root displacement (first to last frame);

@@ -78,6 +78,8 @@ class Actor:
         color: ``"#rrggbb"`` (default: the palette in order).
         start: scene time (s) at which the clip's first frame plays; before it the first pose is held.
         ghost: draw it translucent, as a reference the others are compared with.
+        loop: after its last frame the clip starts again (``True``) or holds its last pose (``False``);
+            ``None`` takes ``build_world``'s ``loop_clips``.
     """
 
     motion: Motion
@@ -85,6 +87,7 @@ class Actor:
     color: str | None = None
     start: float = 0.0
     ghost: bool = False
+    loop: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -174,6 +177,7 @@ class Character:
         sides: ``(P,)`` int8 side of each point (-1 left, 0 centre, 1 right), or ``None``.
         face: ``{"head": i, "left": j, "right": k}`` points that say where the head faces, or ``{}``.
         point_names: ``P`` names of the points (joints, then ``<joint>_end`` end sites).
+        loop: the clip plays again after its last frame (else its last pose is held).
     """
 
     name: str
@@ -190,6 +194,7 @@ class Character:
     sides: np.ndarray | None = None
     face: dict = field(default_factory=dict)
     point_names: tuple[str, ...] = ()
+    loop: bool = False
 
     @property
     def num_frames(self) -> int:
@@ -199,9 +204,17 @@ class Character:
     def end_time(self) -> float:
         return self.start + (self.num_frames - 1) / self.fps
 
+    def local_frame(self, t: float) -> float:
+        """Fractional frame shown at scene time ``t``: the first pose is held before ``start``; after the
+        last frame the clip starts again when it loops (a period of ``num_frames / fps``), else holds."""
+        f = max((t - self.start) * self.fps, 0.0)
+        if self.loop and self.num_frames > 1:
+            f = f % self.num_frames
+        return min(f, self.num_frames - 1.0)
+
     def frame_at(self, t: float) -> int:
-        """Index of the frame shown at scene time ``t`` (held at both ends)."""
-        return int(min(max(round((t - self.start) * self.fps), 0), self.num_frames - 1))
+        """Index of the frame shown at scene time ``t`` (see :meth:`local_frame`)."""
+        return int(min(round(self.local_frame(t)), self.num_frames - 1))
 
     def bones(self) -> np.ndarray:
         """``(B, 2)`` parent and child point of every bone."""
@@ -374,7 +387,7 @@ def _actors(motions, names, colors) -> list[Actor]:
     out = []
     for i, a in enumerate(acts):
         nm = (names[i] if names is not None else None) or a.name or a.motion.name or f"character {i + 1}"
-        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost)))
+        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost), a.loop))
     return out
 
 
@@ -489,7 +502,7 @@ def _classify(overlays) -> tuple[set, set, dict]:
 
 
 def build_world(motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
-                name: str = "") -> World:
+                name: str = "", loop_clips: bool = False) -> World:
     """Prepare characters and overlays for drawing.
 
     Args:
@@ -502,6 +515,8 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
             ``"lanes"`` (side by side across the direction of travel, for comparing movers:
             :func:`kinodyn.viz.objects.lane_offsets`).
         name: scene name.
+        loop_clips: clips shorter than the scene start again after their last frame (else they hold
+            their last pose); an :class:`Actor`'s ``loop`` overrides it.
 
     Raises:
         ParameterError: unknown overlay or layout, wrong shapes, bad character indices.
@@ -542,7 +557,8 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
                                      f"{lab.shape}")
         sides = point_sides(pnames)
         chars.append(Character(a.name, a.color, m.fps, a.start, pos + off, parents, radii, m.num_joints,
-                               _feet_points(m), lab, a.ghost, sides, face_points(pnames, sides, pos), tuple(pnames)))
+                               _feet_points(m), lab, a.ghost, sides, face_points(pnames, sides, pos), tuple(pnames),
+                               bool(loop_clips if a.loop is None else a.loop)))
         if "phases" in auto and lab is not None and not any(p.character == i for p in phases):
             phases.append(Phases(support_phases(lab, m.fps, a.start), f"{a.name} support", i))
     fps = max(c.fps for c in chars)
