@@ -176,9 +176,6 @@ function makeGrid(size, c1, c2, under, opacity, step = 1) {
 // character is drawn with the coarsest capsule whose outline stays within about half a pixel of a
 // true circle at its current size on screen (CAPSULE_LODS: segments around the axis, rings from pole to
 // equator, and the largest on-screen bone radius in pixels it is used for).
-// Bones thinner than this on screen (radius in pixels) are left out: a crowd far away is drawn with
-// its trunk and limbs only.
-const MIN_BONE_PX = 0.3;
 const CAPSULE_LODS = [
   { S: 4, H: 1, maxPx: 0.9 },
   { S: 6, H: 2, maxPx: 2 },
@@ -317,18 +314,30 @@ class Bodies {
   }
 
   // Choose each character's level of detail: pxPerMetre(ch) is its scale on screen (pixels a metre).
-  // Runs of characters at the same level that follow one another are one draw call.
+  // Runs of characters at the same level that follow one another are one draw call. A few characters
+  // get a level per bone (thin bones coarser); a crowd one level per character (its thickest bone's),
+  // so that neighbours at the same distance make one run and the crowd a handful of draw calls.
   setDetail(pxPerMetre) {
     const geo = this.geometry;
     geo.clearGroups();
     let last = null;
+    const perChar = this.chars.length > 20;
     for (const ch of this.chars) {
       const ppm = pxPerMetre(ch), rad = ch.spec.radius;
       ch.lod = 0;
+      if (perChar && ch.bones.length) {
+        let l = 0;
+        while (rad[ch.bones[0]] * ppm > CAPSULE_LODS[l].maxPx) l++;
+        ch.lod = l;
+        const sec = this.sections[l];
+        const start = sec.start + ch.slot * sec.per, count = ch.bones.length * sec.per;
+        if (last && last.start + last.count === start) last.count += count;
+        else { geo.addGroup(start, count, 0); last = geo.groups[geo.groups.length - 1]; }
+        continue;
+      }
       // Bones are sorted thickest first: each level is one run of them.
       for (let b = 0; b < ch.bones.length;) {
         const rpx = rad[ch.bones[b]] * ppm;
-        if (rpx < MIN_BONE_PX) break;  // this bone and the thinner ones after it cover under a pixel
         let l = 0;
         while (rpx > CAPSULE_LODS[l].maxPx) l++;
         ch.lod = Math.max(ch.lod, l);
@@ -1440,8 +1449,9 @@ class Viewer {
   }
 
   tick(now) {
-    // Real time, except after a long stall (a hidden tab): then resume without a jump.
-    const dt = this.lastNow === undefined ? 0 : Math.min((now - this.lastNow) / 1000, 0.5);
+    // Real time, except after a long stall (a hidden tab): then resume without a jump. A frame may take
+    // up to a second (software WebGL on a busy machine) and the clock still keeps real time.
+    const dt = this.lastNow === undefined ? 0 : Math.min((now - this.lastNow) / 1000, 1.0);
     this.lastNow = now;
     this.rafTimes.push(now);
     if (this.rafTimes.length > 600) this.rafTimes.splice(0, this.rafTimes.length - 600);
