@@ -379,6 +379,10 @@ def test_a_dropped_bvh_file_appears_and_plays(drv, walk_page, walk, tmp_path):
     order = [js_names.index(n) for n in names if n in js_names]
     assert len(order) >= run.num_joints
     assert_allclose(js[:, order], pos[:, [n in js_names for n in names]], atol=2e-3)  # cm with 6 decimals
+    _, parents, _ = world.body_points(run)
+    want = world.bone_radii(names, parents, run.skeleton.height())
+    js_r = drv.execute_script("return window.kinodynViewer.viewer.chars[1].spec.radius")
+    assert_allclose([js_r[js_names.index(n)] for n in names], want, atol=2e-3, err_msg="the same capsules as Python's")
     drv.execute_script("window.kinodynViewer.seek(0); window.kinodynViewer.play()")
     t0 = time.perf_counter()
     while drv.execute_script("return window.kinodynViewer.viewer.chars[1].frame") < 10:

@@ -16,18 +16,19 @@ export function sideOf(name) {
   return LEFT.test(n) ? -1 : RIGHT.test(n) ? 1 : 0;
 }
 
-function radiusOf(name, len) {
+// The capsule radius of the bone ending at a point, by kinodyn.viz.world's rules (sent with the page):
+// the first rule whose pattern matches the point's lower-cased name, scaled by the body's height.
+function radiusOf(name, parentName, rules, heightScale) {
   const n = name.toLowerCase();
-  if (/head.*_end$/.test(n)) return 0.095;
-  if (/(finger|thumb|hand.*_end|toe.*_end)/.test(n)) return 0.026;
-  if (/(spine|chest|back|torso|pelvis|hips)/.test(n)) return 0.1;
-  if (/(upleg|thigh|femur)/.test(n)) return 0.075;
-  return Math.min(0.065, Math.max(0.025, 0.16 * len));
+  let r = 0.04;
+  for (const [pat, rad] of rules) if (new RegExp(pat).test(n)) { r = rad; break; }
+  if (r === 0.075 && n.includes('neck') && parentName.toLowerCase().includes('neck')) r = 0.05;  // a second neck segment
+  return r * heightScale;
 }
 
 // Returns a character entry of the page's format (without encoded data) and its positions
 // Float32Array (F * P * 3).
-export function bvhCharacter(text, name, color) {
+export function bvhCharacter(text, name, color, rules = []) {
   const { skeleton, clip } = new BVHLoader().parse(text);
   const bones = skeleton.bones;
   const root = bones[0];
@@ -41,6 +42,11 @@ export function bvhCharacter(text, name, color) {
   // BVHLoader adds the root's OFFSET to its position channels; the channels alone place the root (as
   // kinodyn.io.bvh reads them).
   const o = root.position.clone();
+  // Height of the rest pose (file units, the file's up axis), as Skeleton.height() measures it.
+  root.updateMatrixWorld(true);
+  let ylo = Infinity, yhi = -Infinity;
+  const w = new THREE.Vector3();
+  for (const b of bones) { b.getWorldPosition(w); ylo = Math.min(ylo, w.y); yhi = Math.max(yhi, w.y); }
   const mixer = new THREE.AnimationMixer(root);
   const action = mixer.clipAction(clip);
   action.setLoop(THREE.LoopOnce, 1);
@@ -64,12 +70,8 @@ export function bvhCharacter(text, name, color) {
   const size = Math.max(zhi - zlo, 1e-9);
   const scale = UNITS.reduce((best, u) => (Math.abs(Math.log((size * u) / 1.7)) < Math.abs(Math.log((size * best) / 1.7)) ? u : best), 1);
   for (let i = 0; i < raw.length; i++) raw[i] *= scale;
-  const radius = names.map((n, p) => {
-    if (parents[p] < 0) return 0;
-    const a = 3 * parents[p], b = 3 * p;
-    const len = Math.hypot(raw[b] - raw[a], raw[b + 1] - raw[a + 1], raw[b + 2] - raw[a + 2]);
-    return radiusOf(n, len);
-  });
+  const hs = Math.max((yhi - ylo) * scale, 0.3) / 1.75;
+  const radius = names.map((n, p) => (parents[p] < 0 ? 0 : radiusOf(n, names[parents[p]], rules, hs)));
   const feet = {};
   for (const [side, re] of [['left', LEFT], ['right', RIGHT]]) {
     const idx = [];

@@ -65,7 +65,7 @@ export function drawCurves(cv, curves, duration, title) {
   const x0 = 40, x1 = w - 96, D = Math.max(duration, 1e-6);
   const X = (t) => x0 + ((x1 - x0) * t) / D;
   ctx.fillStyle = '#1d2430';
-  ctx.fillText(title, 6, 9);
+  ctx.fillText(`${title}: speed and height`, 6, 9);
   const plots = [
     { series: curves.speeds, unit: 'm/s', label: 'speed', top: 20, bottom: h / 2 - 6 },
     { series: curves.heights, unit: 'm', label: 'height', top: h / 2 + 10, bottom: h - 16 },

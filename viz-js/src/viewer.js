@@ -834,7 +834,7 @@ class Viewer {
     this.buildLegend();
     this.drawTimeline();
     this.fillCurvesChars();
-    this.frameCamera();
+    this.frameCamera(this.camera.position.clone().sub(this.controls.target));  // the same view, framing all
     return ch;
   }
 
@@ -845,7 +845,7 @@ class Viewer {
       try {
         const text = await file.text();
         const color = this.data.palette[this.chars.length % this.data.palette.length];
-        const { spec, pos } = bvhCharacter(text, file.name.replace(/\.bvh$/i, ''), color);
+        const { spec, pos } = bvhCharacter(text, file.name.replace(/\.bvh$/i, ''), color, this.data.radiusRules || []);
         added.push(this.addCharacter(spec, pos));
         this.note(`added ${file.name}: ${spec.frames} frames at ${spec.fps.toFixed(0)} fps`);
       } catch (e) {
@@ -888,8 +888,10 @@ class Viewer {
     const ext = Math.max(hi.x - lo.x, hi.y - lo.y);
     const size = 2 * Math.ceil((ext + 12) / 2);
     const floor = this.world.floor;
+    // The floor is pushed back in depth so that the grid lines on it never dash in and out far away.
     const plane = new THREE.Mesh(new THREE.PlaneGeometry(size * 1.6, size * 1.6),
-      displaySpace(new THREE.MeshBasicMaterial({ color: FLOOR_COLOR })));
+      displaySpace(new THREE.MeshBasicMaterial({ color: FLOOR_COLOR, polygonOffset: true, polygonOffsetFactor: 2,
+        polygonOffsetUnits: 4 })));
     plane.position.set(cx, cy, floor - 0.001);
     // One-metre squares; five-metre ones on a big floor (a crowd's), where 1 m lines would be a blur.
     const step = size > 40 ? 5 : 1;

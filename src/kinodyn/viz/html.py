@@ -36,7 +36,7 @@ from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_write_bytes
 from kinodyn.viz import style
 from kinodyn.viz.objects import Forces, Marker, Prop, Stages, check_prop
-from kinodyn.viz.world import Actor, Contacts, Impact, Phases, Trajectory, World, build_world
+from kinodyn.viz.world import RADIUS_RULES, Actor, Contacts, Impact, Phases, Trajectory, World, build_world
 
 __all__ = [
     "CAMERAS",
@@ -268,6 +268,7 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
     data = {
         "version": FORMAT_VERSION, "title": title, "palette": list(style.PALETTE),
         "phaseColors": dict(style.PHASE_COLORS), "stageColors": dict(style.STAGE_COLORS),
+        "radiusRules": [list(r) for r in RADIUS_RULES],
         "contactColor": style.CONTACT_COLOR,
         "options": {"style": body, "camera": camera, "autoplay": bool(autoplay), "loop": bool(loop),
                     "contacts": "contacts" in show, "phases": "phases" in show,

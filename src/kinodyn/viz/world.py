@@ -46,6 +46,7 @@ from kinodyn.viz.objects import (
 __all__ = [
     "LAYOUTS",
     "OVERLAY_NAMES",
+    "RADIUS_RULES",
     "Actor",
     "Character",
     "Contacts",
@@ -265,9 +266,10 @@ class World:
 
 # --------------------------------------------------------------------------- bodies
 
-# (pattern on the lower-cased name of the bone's child point, radius in metres for a 1.75 m body).
-# The bone ending at a joint is named by that joint: the bone ending at "LeftLeg" is the thigh.
-_RADIUS_RULES = (
+#: (regex on the lower-cased name of a bone's child point, capsule radius in metres for a 1.75 m body);
+#: the first match wins (the page applies the same rules to a dropped BVH file). The bone ending at a
+#: joint is named by that joint: the bone ending at "LeftLeg" is the thigh.
+RADIUS_RULES = (
     (r"head.*_end$", 0.095),                       # the head itself (Head -> its end site)
     (r"(finger|thumb|index|middle|ring|pinky|hand.*_end|wrist.*_end|fingers)", 0.026),
     (r"head", 0.05),                               # the neck (Neck -> Head)
@@ -283,7 +285,7 @@ _RADIUS_RULES = (
     (r"(foot|ankle)", 0.05),                       # shin
     (r"(leg|knee|tibia|shin|calf)", 0.065),        # thigh
 )
-_RULES = tuple((re.compile(p), r) for p, r in _RADIUS_RULES)
+_RULES = tuple((re.compile(p), r) for p, r in RADIUS_RULES)
 
 
 def bone_radii(names: Sequence[str], parents: np.ndarray, height: float) -> np.ndarray:
