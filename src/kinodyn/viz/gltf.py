@@ -91,42 +91,35 @@ def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
-def to_gltf(motion: Motion, color: str | None = None, mesh: bool = True):
-    """The :class:`pygltflib.GLTF2` document of a motion (see the module docstring)."""
-    try:
-        import pygltflib as g
-    except ImportError:
-        raise KinodynError("glTF export needs pygltflib (pip install 'kinodyn[viz]')") from None
-    if not isinstance(motion, Motion):
-        raise ParameterError(f"motion must be a Motion, got {type(motion).__name__}")
-    if motion.num_frames == 0:
-        raise ParameterError("motion has no frames")
-    sk = motion.skeleton
-    J, E, F = sk.num_joints, len(sk.end_parents), motion.num_frames
-    blob = bytearray()
-    views, accessors = [], []
+class _Blob:
+    """The binary buffer of a glTF document with its buffer views and accessors (filled in order)."""
 
-    def add(data: np.ndarray, comp: int, typ: str, target=None, minmax: bool = False) -> int:
+    def __init__(self, g):
+        self.g = g
+        self.blob = bytearray()
+        self.views, self.accessors = [], []
+
+    def add(self, data: np.ndarray, comp: int, typ: str, target=None, minmax: bool = False) -> int:
+        """Append ``data`` (``(count, ...)``) as one buffer view and accessor; returns the accessor index."""
+        g, blob = self.g, self.blob
         while len(blob) % 4:
             blob.append(0)
         raw = np.ascontiguousarray(data).tobytes()
-        views.append(g.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(raw), target=target))
+        self.views.append(g.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(raw), target=target))
         blob.extend(raw)
         count = data.shape[0]
-        acc = g.Accessor(bufferView=len(views) - 1, componentType=comp, count=count, type=typ)
+        acc = g.Accessor(bufferView=len(self.views) - 1, componentType=comp, count=count, type=typ)
         if minmax:
             flat = data.reshape(count, -1)
             acc.min = [float(x) if comp == _FLOAT else int(x) for x in flat.min(axis=0)]
             acc.max = [float(x) if comp == _FLOAT else int(x) for x in flat.max(axis=0)]
-        accessors.append(acc)
-        return len(accessors) - 1
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
 
-    offsets = to_gltf_axes(sk.offsets)
-    end_offsets = to_gltf_axes(sk.end_offsets) if E else np.zeros((0, 3))
-    root = to_gltf_axes(motion.root_pos)
-    rot = quat.unroll(quat.mul(quat.mul(TO_GLTF, motion.local_rot), quat.conj(TO_GLTF)), axis=0)
-    trans = None if motion.translations is None else to_gltf_axes(motion.translations)
 
+def _nodes(g, sk, root: np.ndarray, offsets: np.ndarray, end_offsets: np.ndarray, trans) -> list:
+    """One node a joint (static TRS of the first frame) and an end site, with their children."""
+    J, E = sk.num_joints, len(sk.end_parents)
     nodes = []
     for j in range(J):
         t = root[0] if j == 0 else (offsets[j] if trans is None else trans[0, j])
@@ -141,26 +134,106 @@ def to_gltf(motion: Motion, color: str | None = None, mesh: bool = True):
     for n in nodes:
         if n.children == []:
             n.children = None
-    scene_nodes = [0]
+    return nodes
 
-    # Animation.
-    times = (np.arange(F) / motion.fps).astype(np.float32)
-    t_acc = add(times, _FLOAT, "SCALAR", minmax=True)
+
+def _animation(g, buf: _Blob, motion: Motion, root: np.ndarray, rot: np.ndarray, trans):
+    """The animation: root translation, every joint's rotation (and translation where animated)."""
+    times = (np.arange(motion.num_frames) / motion.fps).astype(np.float32)
+    t_acc = buf.add(times, _FLOAT, "SCALAR", minmax=True)
     samplers, channels = [], []
 
     def channel(node: int, path: str, values: np.ndarray, typ: str) -> None:
-        samplers.append(g.AnimationSampler(input=t_acc, output=add(values.astype(np.float32), _FLOAT, typ),
+        samplers.append(g.AnimationSampler(input=t_acc, output=buf.add(values.astype(np.float32), _FLOAT, typ),
                                            interpolation="LINEAR"))
         channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
                                            target=g.AnimationChannelTarget(node=node, path=path)))
 
     channel(0, "translation", root, "VEC3")
-    for j in range(J):
+    for j in range(motion.skeleton.num_joints):
         channel(j, "rotation", rot[:, j][:, [1, 2, 3, 0]], "VEC4")
         if trans is not None and j > 0:
             channel(j, "translation", trans[:, j], "VEC3")
-    animations = [g.Animation(name=motion.name or "motion", samplers=samplers, channels=channels)]
+    return g.Animation(name=motion.name or "motion", samplers=samplers, channels=channels)
 
+
+def _capsules(sk, bind: np.ndarray, end_offsets: np.ndarray):
+    """Capsule vertices, normals, triangles and joint of each vertex over the bind pose, or ``None``."""
+    E = len(sk.end_parents)
+    pts = np.concatenate([bind, bind[sk.end_parents] + end_offsets]) if E else bind
+    parents = np.concatenate([sk.parents, sk.end_parents]) if E else np.asarray(sk.parents)
+    names = list(sk.names) + [f"{sk.names[p]}_end" for p in sk.end_parents]
+    radii = bone_radii(names, parents, sk.height())
+    vs, ns, ts, js = [], [], [], []
+    base = 0
+    for c in range(1, len(pts)):
+        p = int(parents[c])
+        if np.linalg.norm(pts[c] - pts[p]) < 1e-4:
+            continue
+        v, n, t = _capsule(pts[p], pts[c], float(radii[c]))
+        vs.append(v)
+        ns.append(n)
+        ts.append(t + base)
+        js.append(np.full(len(v), p))
+        base += len(v)
+    if not vs:
+        return None
+    return (np.concatenate(vs).astype(np.float32), np.concatenate(ns).astype(np.float32), np.concatenate(ts),
+            np.concatenate(js))
+
+
+def _skinned_body(g, buf: _Blob, sk, bind: np.ndarray, end_offsets: np.ndarray, color):
+    """(mesh, skin, material) of the capsule body skinned to the joints (rigidly, one joint a vertex),
+    or ``None`` when the skeleton has no bone of any length."""
+    caps = _capsules(sk, bind, end_offsets)
+    if caps is None:
+        return None
+    v, n, t, jnt = caps
+    J = sk.num_joints
+    joints = np.zeros((len(v), 4), dtype=np.uint8 if J < 256 else np.uint16)
+    joints[:, 0] = jnt
+    weights = np.zeros((len(v), 4), dtype=np.float32)
+    weights[:, 0] = 1.0
+    idx_type = _USHORT if len(v) < 65535 else _UINT
+    i_acc = buf.add(t.astype(np.uint16 if idx_type == _USHORT else np.uint32).ravel(), idx_type, "SCALAR",
+                    _ELEMENT_ARRAY_BUFFER)
+    attrs = g.Attributes(POSITION=buf.add(v, _FLOAT, "VEC3", _ARRAY_BUFFER, minmax=True),
+                         NORMAL=buf.add(n, _FLOAT, "VEC3", _ARRAY_BUFFER),
+                         JOINTS_0=buf.add(joints, _UBYTE if J < 256 else _USHORT, "VEC4", _ARRAY_BUFFER),
+                         WEIGHTS_0=buf.add(weights, _FLOAT, "VEC4", _ARRAY_BUFFER))
+    rgb = _srgb_to_linear(style.rgb(color or style.PALETTE[0]))
+    material = g.Material(name="body", pbrMetallicRoughness=g.PbrMetallicRoughness(
+        baseColorFactor=[float(x) for x in rgb] + [1.0], metallicFactor=0.0, roughnessFactor=0.6))
+    mesh = g.Mesh(name="body", primitives=[g.Primitive(attributes=attrs, indices=i_acc, material=0)])
+    ibm = np.tile(np.eye(4, dtype=np.float32), (J, 1, 1))
+    ibm[:, :3, 3] = -bind
+    # glTF matrices are column-major: write each matrix transposed.
+    ibm_acc = buf.add(np.ascontiguousarray(ibm.transpose(0, 2, 1)).reshape(J, 16), _FLOAT, "MAT4")
+    skin = g.Skin(name="skeleton", joints=list(range(J)), skeleton=0, inverseBindMatrices=ibm_acc)
+    return mesh, skin, material
+
+
+def to_gltf(motion: Motion, color: str | None = None, mesh: bool = True):
+    """The :class:`pygltflib.GLTF2` document of a motion (see the module docstring)."""
+    try:
+        import pygltflib as g
+    except ImportError:
+        raise KinodynError("glTF export needs pygltflib (pip install 'kinodyn[viz]')") from None
+    if not isinstance(motion, Motion):
+        raise ParameterError(f"motion must be a Motion, got {type(motion).__name__}")
+    if motion.num_frames == 0:
+        raise ParameterError("motion has no frames")
+    sk = motion.skeleton
+    J, E = sk.num_joints, len(sk.end_parents)
+    buf = _Blob(g)
+    offsets = to_gltf_axes(sk.offsets)
+    end_offsets = to_gltf_axes(sk.end_offsets) if E else np.zeros((0, 3))
+    root = to_gltf_axes(motion.root_pos)
+    rot = quat.unroll(quat.mul(quat.mul(TO_GLTF, motion.local_rot), quat.conj(TO_GLTF)), axis=0)
+    trans = None if motion.translations is None else to_gltf_axes(motion.translations)
+    nodes = _nodes(g, sk, root, offsets, end_offsets, trans)
+    scene_nodes = [0]
+    animations = [_animation(g, buf, motion, root, rot, trans)]
     meshes, skins, materials = [], [], []
     if mesh:
         # Bind pose: identity rotations, root at its first-frame position (the nodes' static TRS).
@@ -168,57 +241,17 @@ def to_gltf(motion: Motion, color: str | None = None, mesh: bool = True):
         bind[0] = root[0]
         for j in range(1, J):
             bind[j] = bind[sk.parents[j]] + (offsets[j] if trans is None else trans[0, j])
-        pts = np.concatenate([bind, bind[sk.end_parents] + end_offsets]) if E else bind
-        parents = np.concatenate([sk.parents, sk.end_parents]) if E else np.asarray(sk.parents)
-        names = list(sk.names) + [f"{sk.names[p]}_end" for p in sk.end_parents]
-        radii = bone_radii(names, parents, sk.height())
-        vs, ns, ts, js = [], [], [], []
-        base = 0
-        for c in range(1, len(pts)):
-            p = int(parents[c])
-            if np.linalg.norm(pts[c] - pts[p]) < 1e-4:
-                continue
-            v, n, t = _capsule(pts[p], pts[c], float(radii[c]))
-            vs.append(v)
-            ns.append(n)
-            ts.append(t + base)
-            js.append(np.full(len(v), p))
-            base += len(v)
-        if vs:
-            v = np.concatenate(vs).astype(np.float32)
-            n = np.concatenate(ns).astype(np.float32)
-            t = np.concatenate(ts)
-            jnt = np.concatenate(js)
-            joints = np.zeros((len(v), 4), dtype=np.uint8 if J < 256 else np.uint16)
-            joints[:, 0] = jnt
-            weights = np.zeros((len(v), 4), dtype=np.float32)
-            weights[:, 0] = 1.0
-            idx_type = _USHORT if len(v) < 65535 else _UINT
-            i_acc = add(t.astype(np.uint16 if idx_type == _USHORT else np.uint32).ravel(), idx_type, "SCALAR",
-                        _ELEMENT_ARRAY_BUFFER)
-            attrs = g.Attributes(POSITION=add(v, _FLOAT, "VEC3", _ARRAY_BUFFER, minmax=True),
-                                 NORMAL=add(n, _FLOAT, "VEC3", _ARRAY_BUFFER),
-                                 JOINTS_0=add(joints, _UBYTE if J < 256 else _USHORT, "VEC4", _ARRAY_BUFFER),
-                                 WEIGHTS_0=add(weights, _FLOAT, "VEC4", _ARRAY_BUFFER))
-            rgb = _srgb_to_linear(style.rgb(color or style.PALETTE[0]))
-            materials.append(g.Material(name="body", pbrMetallicRoughness=g.PbrMetallicRoughness(
-                baseColorFactor=[float(x) for x in rgb] + [1.0], metallicFactor=0.0, roughnessFactor=0.6)))
-            meshes.append(g.Mesh(name="body", primitives=[g.Primitive(attributes=attrs, indices=i_acc,
-                                                                      material=0)]))
-            ibm = np.tile(np.eye(4, dtype=np.float32), (J, 1, 1))
-            ibm[:, :3, 3] = -bind
-            # glTF matrices are column-major: write each matrix transposed.
-            ibm_acc = add(np.ascontiguousarray(ibm.transpose(0, 2, 1)).reshape(J, 16), _FLOAT, "MAT4")
-            skins.append(g.Skin(name="skeleton", joints=list(range(J)), skeleton=0, inverseBindMatrices=ibm_acc))
+        body = _skinned_body(g, buf, sk, bind, end_offsets, color)
+        if body is not None:
+            meshes, skins, materials = [body[0]], [body[1]], [body[2]]
             nodes.append(g.Node(name="body", mesh=0, skin=0))
             scene_nodes.append(len(nodes) - 1)
-
     doc = g.GLTF2(
         asset=g.Asset(version="2.0", generator="kinodyn"),
         scene=0, scenes=[g.Scene(name=motion.name or "scene", nodes=scene_nodes)], nodes=nodes,
-        buffers=[g.Buffer(byteLength=len(blob))], bufferViews=views, accessors=accessors,
+        buffers=[g.Buffer(byteLength=len(buf.blob))], bufferViews=buf.views, accessors=buf.accessors,
         animations=animations, meshes=meshes, skins=skins, materials=materials)
-    doc.set_binary_blob(bytes(blob))
+    doc.set_binary_blob(bytes(buf.blob))
     return doc
 
 
