@@ -53,13 +53,14 @@ function propGeometry(p) {
 }
 
 export class Prop {
-  // spec: the page's prop entry; pos: Float32Array (F * 3) decoded centres.
-  constructor(spec, pos, floor) {
+  // spec: the page's prop entry; pos: Float32Array (F * 3) decoded centres. software: WebGL runs on
+  // the CPU (then a Lambert material, as the bodies get: several times cheaper than a physical one).
+  constructor(spec, pos, floor, software = false) {
     this.spec = spec;
     this.pos = pos;
     this.F = spec.frames;
-    this.mesh = new THREE.Mesh(propGeometry(spec),
-      new THREE.MeshStandardMaterial({ color: spec.color, roughness: 0.6, metalness: 0.05 }));
+    this.mesh = new THREE.Mesh(propGeometry(spec), software ? new THREE.MeshLambertMaterial({ color: spec.color })
+      : new THREE.MeshStandardMaterial({ color: spec.color, roughness: 0.6, metalness: 0.05 }));
     this.mesh.name = `prop ${spec.label || spec.shape}`;
     this.shadow = null;
     this.group = new THREE.Group();

@@ -768,7 +768,7 @@ class Viewer {
     this.rebuildBodies();
     this.props = [];
     for (const p of spec.props || []) {
-      const prop = new Prop(p, await decodePositions(p.pos, p.frames, 1), this.world.floor);
+      const prop = new Prop(p, await decodePositions(p.pos, p.frames, 1), this.world.floor, this.software);
       this.props.push(prop);
       this.sceneGroup.add(prop.group);
     }
@@ -955,7 +955,9 @@ class Viewer {
     if (this.chars.length <= 40) {
       for (const ch of this.chars) add(ch.spec.color, ch.ghost ? `${ch.spec.name} (reference)` : ch.spec.name, ch.ghost ? 'kd-ghost' : '');
     } else add('#888', `${this.chars.length} characters`);
-    for (const p of this.props || []) if (p.spec.label) add(p.spec.color, p.spec.label);
+    const props = (this.props || []).filter((p) => p.spec.label);
+    if (props.length <= 6) for (const p of props) add(p.spec.color, p.spec.label);
+    else add(props[0].spec.color, `${props.length} objects`);
   }
 
   // -------------------------------------------------------------------- camera
