@@ -180,3 +180,17 @@ def test_the_ball_of_a_hit_is_recorded_from_the_physics_world(walk):
     k = round((hits[0].time - props[0].start) * props[0].fps)
     assert np.linalg.norm(props[0].positions[k] - hits[0].point) < 0.11 + 0.05
     assert any(isinstance(o, Forces) for o in overlays)
+
+
+def test_the_benchmark_scenes_are_what_their_keys_say():
+    """``page_fps_500`` and ``page_fps_scene`` measure a 500-character page and a 20-object scene."""
+    from kinodyn.bench.viz import crowd_scene, object_scene
+
+    crowd = crowd_scene(500, 30)
+    assert len(crowd) == 500 and all(m.num_frames == 30 for m in crowd)
+    motions, overlays = object_scene()
+    props = [o for o in overlays if isinstance(o, Prop)]
+    assert len(props) == 20 and {p.shape for p in props} == {"sphere", "box", "capsule", "mesh"}
+    assert any(isinstance(o, Forces) for o in overlays)
+    w = world.build_world(motions, ["contacts", *overlays])
+    assert len(w.props) == 20 and len(w.characters) == 2
