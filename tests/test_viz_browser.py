@@ -75,10 +75,10 @@ def pair_page(tmp_path_factory):
 
 
 def test_page_plays_without_console_errors(pair_page):
-    check = browser.check_page(pair_page, seconds=2.0)
+    check = browser.check_page(pair_page, seconds=4.0)  # 4 s: a few frames a second on a busy machine
     assert check.ready
     assert check.console_errors == ()
-    assert check.frames_advanced > 10, f"the page played {check.frames_advanced} frames in 2 s"
+    assert check.frames_advanced > 10, f"the page played {check.frames_advanced} frames in 4 s"
     assert check.distinct_frames >= 3, "the frame counter did not move"
     assert check.fps > 1.0
     from PIL import Image

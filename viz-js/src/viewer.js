@@ -16,6 +16,9 @@
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { Balance, Forces, Onion, Prop, Trails } from './extras.js';
+import { characterCurves, curvesAt, drawCurves } from './curves.js';
+import { bvhCharacter } from './bvh.js';
 
 const UP = new THREE.Vector3(0, 0, 1);
 const Y_AXIS = new THREE.Vector3(0, 1, 0);
@@ -134,16 +137,16 @@ function setArrow(arrow, a, b, r) {
 
 const FLOOR_COLOR = 0xeeebe4;
 
-// A floor grid of size x size one-metre squares in the XY plane, centre lines in colour c1, the others
+// A floor grid of size x size metres in squares of `step` metres in the XY plane, centre lines in colour c1, the others
 // in c2, drawn at the given opacity over a floor of colour `under`: the colours are blended with the
 // floor's here (in display space, as the blending of a transparent grid would) so that the grid is an
 // opaque draw.
-function makeGrid(size, c1, c2, under, opacity) {
+function makeGrid(size, c1, c2, under, opacity, step = 1) {
   const h = size / 2, pos = [], col = [];
   const floor = new THREE.Color().setHex(under, THREE.LinearSRGBColorSpace);
   const mix = (c) => new THREE.Color().setHex(c, THREE.LinearSRGBColorSpace).lerp(floor, 1 - opacity);
   const k1 = mix(c1), k2 = mix(c2);
-  for (let i = 0; i <= size; i++) {
+  for (let i = 0; i <= size; i += step) {
     const k = -h + i, c = 2 * i === size ? k1 : k2;
     pos.push(-h, k, 0, h, k, 0, k, -h, 0, k, h, 0);
     for (let v = 0; v < 4; v++) col.push(c.r, c.g, c.b);
@@ -174,6 +177,7 @@ function makeGrid(size, c1, c2, under, opacity) {
 // true circle at its current size on screen (CAPSULE_LODS: segments around the axis, rings from pole to
 // equator, and the largest on-screen bone radius in pixels it is used for).
 const CAPSULE_LODS = [
+  { S: 4, H: 1, maxPx: 0.9 },
   { S: 6, H: 2, maxPx: 2 },
   { S: 10, H: 4, maxPx: 8 },
   { S: 16, H: 6, maxPx: Infinity },
@@ -208,9 +212,14 @@ const CAPSULE_PARS = `
 uniform sampler2D kdBones;
 attribute vec2 kdBone;
 `;
+// Bone i is at texels (2 (i % BONE_ROW), i / BONE_ROW) and the next one: the texture stays within
+// every GPU's size limit for thousands of characters.
+const BONE_ROW = 1024;
 const CAPSULE_NORMAL = `
-vec4 kdA = texelFetch( kdBones, ivec2( 0, int( kdBone.x ) ), 0 );
-vec4 kdB = texelFetch( kdBones, ivec2( 1, int( kdBone.x ) ), 0 );
+int kdI = int( kdBone.x + 0.5 );
+ivec2 kdT = ivec2( 2 * ( kdI % ${BONE_ROW} ), kdI / ${BONE_ROW} );
+vec4 kdA = texelFetch( kdBones, kdT, 0 );
+vec4 kdB = texelFetch( kdBones, kdT + ivec2( 1, 0 ), 0 );
 vec3 kdAxis = kdB.xyz - kdA.xyz;
 float kdLen = length( kdAxis );
 vec3 kdY = kdLen > 1e-6 ? kdAxis / kdLen : vec3( 0.0, 0.0, 1.0 );
@@ -223,12 +232,14 @@ vec3 transformed = ( kdBone.y > 0.5 ? kdB.xyz : kdA.xyz ) + kdA.w * objectNormal
 `;
 
 class Bodies {
-  // chars: [{bones: [joint index], spec}] in slot order.
-  constructor(chars, software) {
+  // chars: [{bones: [joint index], spec}] in slot order. ghost: drawn translucent (references).
+  // Left bones are drawn lighter and right bones darker than the character's colour.
+  constructor(chars, software, ghost = false) {
     const temps = CAPSULE_LODS.map((l) => capsuleTemplate(l.S, l.H));
     const n = Math.max(chars.reduce((k, ch) => k + ch.bones.length, 0), 1);
-    this.data = new Float32Array(8 * n);
-    this.texture = new THREE.DataTexture(this.data, 2, n, THREE.RGBAFormat, THREE.FloatType);
+    const rows = Math.ceil(n / BONE_ROW);
+    this.data = new Float32Array(8 * BONE_ROW * rows);
+    this.texture = new THREE.DataTexture(this.data, 2 * BONE_ROW, rows, THREE.RGBAFormat, THREE.FloatType);
     this.texture.minFilter = this.texture.magFilter = THREE.NearestFilter;
     this.texture.generateMipmaps = false;
     this.texture.needsUpdate = true;
@@ -242,8 +253,10 @@ class Bodies {
       this.sections.push({ start: i0, per: t.idx.length });
       let slot = 0;
       for (const ch of chars) {
-        const c = colorOf(ch.spec.color);
+        const base = colorOf(ch.spec.color), sides = ch.spec.sides;
+        const tints = [base.clone().lerp(new THREE.Color(0xffffff), 0.38), base, base.clone().multiplyScalar(0.62)];
         for (let b = 0; b < ch.bones.length; b++, slot++) {
+          const c = sides ? tints[1 + sides[ch.bones[b]]] : base;
           nrm.set(t.nrm, 3 * v0);
           for (let v = 0; v < t.verts; v++) {
             bone[2 * (v0 + v)] = slot;
@@ -257,7 +270,7 @@ class Bodies {
       }
     });
     let slot = 0;
-    for (const ch of chars) { ch.slot = slot; slot += ch.bones.length; }
+    for (const ch of chars) { ch.slot = slot; ch.bodies = this; slot += ch.bones.length; }
     this.chars = chars;
     const geo = new THREE.BufferGeometry();
     geo.setAttribute('position', new THREE.BufferAttribute(nrm, 3));  // unused: placed by the shader
@@ -266,7 +279,11 @@ class Bodies {
     geo.setAttribute('color', new THREE.BufferAttribute(col, 3));
     geo.setIndex(new THREE.BufferAttribute(idx, 1));
     this.geometry = geo;
-    const opts = { color: 0xffffff, vertexColors: true };
+    // A reference is drawn behind the solid bodies where they coincide (polygon offset), so it shows
+    // only where the two differ.
+    const opts = ghost ? { color: 0xffffff, vertexColors: true, transparent: true, opacity: 0.3, depthWrite: false,
+      polygonOffset: true, polygonOffsetFactor: 2, polygonOffsetUnits: 8 }
+      : { color: 0xffffff, vertexColors: true };
     const mat = software ? new THREE.MeshLambertMaterial(opts)
       : new THREE.MeshStandardMaterial({ ...opts, roughness: 0.55, metalness: 0.05 });
     const texture = this.texture;
@@ -279,7 +296,8 @@ class Bodies {
     };
     mat.customProgramCacheKey = () => 'kd-capsules';
     this.mesh = new THREE.Mesh(geo, [mat]);  // drawn by groups: the level of detail of each character
-    this.mesh.name = 'bodies';
+    this.mesh.name = ghost ? 'ghosts' : 'bodies';
+    if (ghost) this.mesh.renderOrder = 5;
     this.mesh.frustumCulled = false;
   }
 
@@ -296,14 +314,27 @@ class Bodies {
   }
 
   // Choose each character's level of detail: pxPerMetre(ch) is its scale on screen (pixels a metre).
-  // Runs of characters at the same level that follow one another are one draw call.
+  // Runs of characters at the same level that follow one another are one draw call. A few characters
+  // get a level per bone (thin bones coarser); a crowd one level per character (its thickest bone's),
+  // so that neighbours at the same distance make one run and the crowd a handful of draw calls.
   setDetail(pxPerMetre) {
     const geo = this.geometry;
     geo.clearGroups();
     let last = null;
+    const perChar = this.chars.length > 20;
     for (const ch of this.chars) {
       const ppm = pxPerMetre(ch), rad = ch.spec.radius;
       ch.lod = 0;
+      if (perChar && ch.bones.length) {
+        let l = 0;
+        while (rad[ch.bones[0]] * ppm > CAPSULE_LODS[l].maxPx) l++;
+        ch.lod = l;
+        const sec = this.sections[l];
+        const start = sec.start + ch.slot * sec.per, count = ch.bones.length * sec.per;
+        if (last && last.start + last.count === start) last.count += count;
+        else { geo.addGroup(start, count, 0); last = geo.groups[geo.groups.length - 1]; }
+        continue;
+      }
       // Bones are sorted thickest first: each level is one run of them.
       for (let b = 0; b < ch.bones.length;) {
         const rpx = rad[ch.bones[b]] * ppm;
@@ -332,13 +363,59 @@ class Bodies {
 
 const SIDES = ['left', 'right'];
 
+// Blob shadows, foot-contact rings and noses of every character of a scene: three instanced meshes,
+// three draw calls however many characters there are. Filled by the characters each frame.
+class Marks {
+  constructor(n, world) {
+    this.shadows = new THREE.InstancedMesh(world.discGeo, world.shadowMat, Math.max(n, 1));
+    this.rings = new THREE.InstancedMesh(world.ringGeo, world.ringMat, Math.max(2 * n, 1));
+    this.noses = new THREE.InstancedMesh(world.noseGeo, world.noseMat, Math.max(n, 1));
+    this.shadows.renderOrder = 1;
+    this.rings.renderOrder = 2;
+    for (const m of [this.shadows, this.rings, this.noses]) { m.frustumCulled = false; m.count = 0; }
+    this.noses.name = 'noses';
+    this.group = new THREE.Group();
+    this.group.add(this.shadows, this.rings, this.noses);
+  }
+
+  begin() { this.ns = 0; this.nr = 0; this.nn = 0; }
+
+  shadow(x, y, z, s) {
+    _q.identity(); _a.set(x, y, z); _s.set(s, s, 1);
+    this.shadows.setMatrixAt(this.ns++, _m.compose(_a, _q, _s));
+  }
+
+  ring(x, y, z) {
+    _q.identity(); _a.set(x, y, z); _s.set(1, 1, 1);
+    this.rings.setMatrixAt(this.nr++, _m.compose(_a, _q, _s));
+  }
+
+  // A nose: a cone at p pointing along the unit vector d, scaled by k.
+  nose(p, d, k) {
+    _q.setFromUnitVectors(Y_AXIS, d); _s.set(k, k, k);
+    this.noses.setMatrixAt(this.nn++, _m.compose(p, _q, _s));
+  }
+
+  end() {
+    this.shadows.count = this.ns; this.rings.count = this.nr; this.noses.count = this.nn;
+    for (const m of [this.shadows, this.rings, this.noses]) m.instanceMatrix.needsUpdate = true;
+  }
+
+  dispose() { for (const m of [this.shadows, this.rings, this.noses]) m.dispose(); }
+}
+
+const _fwd = new THREE.Vector3();
+const _nose = new THREE.Vector3();
+
 class Character {
-  constructor(spec, pos, contacts, world) {
+  constructor(spec, pos, contacts, world, index = 0) {
     this.spec = spec;
     this.pos = pos;
+    this.index = index;
     this.contacts = contacts;  // Uint8Array (F) bit 0 left, bit 1 right, or null
     this.P = spec.parents.length;
     this.F = spec.frames;
+    this.ghost = !!spec.ghost;
     this.cur = new Float32Array(this.P * 3);
     this.group = new THREE.Group();
     this.group.name = spec.name;
@@ -355,31 +432,34 @@ class Character {
       this.jr[par] = Math.max(this.jr[par], r);
     }
     for (let p = 0; p < this.P; p++) if (this.jr[p] === 0) this.jr[p] = 0.03;
+    // The head's tip (its thickest child: the head capsule) for the nose.
+    const face = spec.face || {};
+    this.headTip = -1;
+    if (face.head !== undefined) {
+      for (let p = 0; p < this.P; p++) {
+        if (spec.parents[p] === face.head && (this.headTip < 0 || spec.radius[p] > spec.radius[this.headTip])) this.headTip = p;
+      }
+    }
+    // Lowest point over the clip (snap to floor) and the first root position (in place).
+    let zmin = Infinity;
+    for (let i = 2; i < pos.length; i += 3) zmin = Math.min(zmin, pos[i]);
+    this.zmin = zmin;
+    this.root0 = [pos[0], pos[1]];
     // Capsule style: drawn by the scene's Bodies mesh (slot: this character's first bone there).
     this.slot = 0;
+    this.bodies = null;
     // Bone style: lines plus small joints.
     const lineGeo = new THREE.BufferGeometry();
     this.lineAttr = new THREE.BufferAttribute(new Float32Array(this.bones.length * 6), 3);
     lineGeo.setAttribute('position', this.lineAttr);
     this.lines = new THREE.LineSegments(lineGeo,
-      displaySpace(new THREE.LineBasicMaterial({ color: color.clone().multiplyScalar(0.7) })));
+      displaySpace(new THREE.LineBasicMaterial({ color: color.clone().multiplyScalar(0.7),
+        transparent: this.ghost, opacity: this.ghost ? 0.35 : 1 })));
     this.lines.frustumCulled = false;
-    this.dots = new THREE.InstancedMesh(world.sphGeo, displaySpace(new THREE.MeshBasicMaterial({ color })), this.P);
+    this.dots = new THREE.InstancedMesh(world.sphGeo, displaySpace(new THREE.MeshBasicMaterial({ color,
+      transparent: this.ghost, opacity: this.ghost ? 0.35 : 1 })), this.P);
     this.dots.frustumCulled = false;
     this.group.add(this.lines, this.dots);
-    // Blob shadow.
-    this.shadow = new THREE.Mesh(world.discGeo, world.shadowMat);
-    this.shadow.renderOrder = 1;
-    this.group.add(this.shadow);
-    // Foot contact rings.
-    this.rings = {};
-    for (const side of ['left', 'right']) {
-      const ring = new THREE.Mesh(world.ringGeo, world.ringMat);
-      ring.visible = false;
-      ring.renderOrder = 2;
-      this.rings[side] = ring;
-      this.group.add(ring);
-    }
     // Root trajectory on the floor.
     const tr = new Float32Array(this.F * 3);
     for (let f = 0; f < this.F; f++) {
@@ -394,27 +474,42 @@ class Character {
     this.group.add(this.traj);
     // Name label (HTML).
     this.label = document.createElement('div');
-    this.label.className = 'kd-label';
-    this.label.textContent = spec.name;
+    this.label.className = this.ghost ? 'kd-label kd-ghost' : 'kd-label';
+    this.label.textContent = this.ghost ? `${spec.name} (reference)` : spec.name;
     this.label.style.borderColor = spec.color;
     world.labels.appendChild(this.label);
     this.headTop = new THREE.Vector3();
     this.frame = 0;
+    this.extras = null;  // balance, trails and onion skins, made when first switched on
   }
 
   // Local (fractional) frame at world time t.
+  // A looping clip starts again after its last frame (period F / fps); others hold it.
   localFrame(t) {
-    const f = (t - this.spec.start) * this.spec.fps;
-    return Math.min(Math.max(f, 0), this.F - 1);
+    const f = Math.max((t - this.spec.start) * this.spec.fps, 0);
+    if (this.spec.loop && this.F > 1) return Math.min(f % this.F, this.F - 1);
+    return Math.min(f, this.F - 1);
+  }
+
+  // The pose at scene time t into out (P * 3), moved as the in-place and snap-to-floor toggles say.
+  sample(t, out, opts) {
+    const ff = this.localFrame(t);
+    const i0 = Math.floor(ff), i1 = Math.min(i0 + 1, this.F - 1), a = ff - i0;
+    const P3 = this.P * 3, pos = this.pos;
+    const o0 = i0 * P3, o1 = i1 * P3;
+    for (let k = 0; k < P3; k++) out[k] = pos[o0 + k] + a * (pos[o1 + k] - pos[o0 + k]);
+    let dx = 0, dy = 0, dz = 0;
+    if (opts.inPlace) { dx = this.root0[0] - out[0]; dy = this.root0[1] - out[1]; }
+    if (opts.snap) dz = (this.floorZ || 0) - this.zmin;
+    if (dx || dy || dz) for (let k = 0; k < P3; k += 3) { out[k] += dx; out[k + 1] += dy; out[k + 2] += dz; }
+    return ff;
   }
 
   update(t, opts, world) {
-    const ff = this.localFrame(t);
-    const i0 = Math.floor(ff), i1 = Math.min(i0 + 1, this.F - 1), a = ff - i0;
+    this.floorZ = world.floor;
+    const ff = this.sample(t, this.cur, opts);
     this.frame = Math.min(Math.round(ff), this.F - 1);
-    const P3 = this.P * 3, pos = this.pos, cur = this.cur;
-    const o0 = i0 * P3, o1 = i1 * P3;
-    for (let k = 0; k < P3; k++) cur[k] = pos[o0 + k] + a * (pos[o1 + k] - pos[o0 + k]);
+    const cur = this.cur;
     const capsules = opts.style === 'capsules';
     this.lines.visible = this.dots.visible = !capsules;
     let zmax = -Infinity, imax = 0;
@@ -423,7 +518,7 @@ class Character {
     }
     this.headTop.set(cur[3 * imax], cur[3 * imax + 1], zmax + 0.12);
     if (capsules) {
-      if (world.bodies) world.bodies.write(this, cur);
+      if (this.bodies) this.bodies.write(this, cur);
     } else {
       const la = this.lineAttr.array;
       let n = 0;
@@ -443,28 +538,54 @@ class Character {
       }
       this.dots.instanceMatrix.needsUpdate = true;
     }
+    const marks = world.marks;
     // Blob shadow under the root, shrinking with height above the floor.
     const rz = cur[2] - world.floor;
-    const sh = 0.3 * Math.max(0.4, 1.2 - 0.35 * Math.max(rz - 0.9, 0));
-    this.shadow.position.set(cur[0], cur[1], world.floor + 0.003);
-    this.shadow.scale.set(sh, sh, 1);
-    // Foot contacts.
-    const feet = this.spec.feet || {};
-    const showContacts = opts.contacts && this.contacts;
-    for (let bit = 0; bit < 2; bit++) {
-      const side = SIDES[bit];
-      const ring = this.rings[side];
-      const idx = feet[side];
-      if (!showContacts || !idx || !idx.length) { ring.visible = false; continue; }
-      const on = (this.contacts[this.frame] >> bit) & 1;
-      ring.visible = !!on;
-      if (on) {
-        let x = 0, y = 0;
-        for (const p of idx) { x += cur[3 * p]; y += cur[3 * p + 1]; }
-        ring.position.set(x / idx.length, y / idx.length, world.floor + 0.008);
+    if (!this.ghost) marks.shadow(cur[0], cur[1], world.floor + 0.003, 0.3 * Math.max(0.4, 1.2 - 0.35 * Math.max(rz - 0.9, 0)));
+    // Nose: which way the head faces (up x (right - left)), at the front of the head.
+    const face = this.spec.face;
+    if (face && face.left !== undefined && !this.ghost) {
+      const l = 3 * face.left, r = 3 * face.right;
+      _fwd.set(-(cur[r + 1] - cur[l + 1]), cur[r] - cur[l], 0);
+      const len = _fwd.length();
+      if (len > 1e-6) {
+        _fwd.divideScalar(len);
+        const h = 3 * face.head, tip = this.headTip;
+        const rad = tip >= 0 ? this.spec.radius[tip] : 0.09;
+        if (tip >= 0) _nose.set((cur[h] + cur[3 * tip]) / 2, (cur[h + 1] + cur[3 * tip + 1]) / 2, (cur[h + 2] + cur[3 * tip + 2]) / 2);
+        else _nose.set(cur[h], cur[h + 1], cur[h + 2]);
+        _nose.addScaledVector(_fwd, rad * 0.92);
+        marks.nose(_nose, _fwd, rad / 0.095);
       }
     }
-    this.traj.visible = !!opts.trajectories;
+    // Foot contacts, and the feet in contact (support polygon).
+    const feet = this.spec.feet || {};
+    const feetOn = [];
+    if (this.contacts) {
+      for (let bit = 0; bit < 2; bit++) {
+        const idx = feet[SIDES[bit]];
+        if (!idx || !idx.length || !((this.contacts[this.frame] >> bit) & 1)) continue;
+        feetOn.push(idx);
+        if (!opts.contacts) continue;
+        let x = 0, y = 0;
+        for (const p of idx) { x += cur[3 * p]; y += cur[3 * p + 1]; }
+        marks.ring(x / idx.length, y / idx.length, world.floor + 0.008);
+      }
+    }
+    this.traj.visible = !!opts.trajectories && !opts.inPlace;
+    // Balance, trails and onion skins: made when first switched on.
+    if ((opts.com || opts.support || opts.trails || opts.onion) && !this.extras) {
+      this.extras = { balance: new Balance(this.spec.color, world.sphGeo, world.floor), trails: new Trails(this),
+        onion: new Onion(this) };
+      this.group.add(this.extras.balance.group, this.extras.trails.group, this.extras.onion.group);
+    }
+    if (this.extras) {
+      this.extras.balance.floor = world.floor;
+      this.extras.balance.update(this, opts, feetOn);
+      const sample = (ch, tt, out) => ch.sample(tt, out, opts);
+      this.extras.trails.update(this, t, opts, sample);
+      this.extras.onion.update(this, t, opts, sample);
+    }
   }
 
   dispose() {
@@ -473,6 +594,28 @@ class Character {
 }
 
 // ------------------------------------------------------------------------------------------ viewer
+
+// What a follow camera looks from (towards the camera, from its target) at start and for the presets:
+// 'front' faces the characters, 'side' looks at their right side, 'top' from above.
+const DEFAULT_BACK = new THREE.Vector3(0.45, -1, 0.42).normalize();
+
+export class WebGLUnavailableError extends Error {}
+
+export const MSG_NO_WEBGL = 'This page needs WebGL to draw the 3-D view, and this browser has none available ' +
+  '(it is switched off, blocked, or the graphics driver is not supported). Turn on hardware acceleration ' +
+  'in the browser settings, or open the file in a current Chrome, Edge, Firefox or Safari.';
+
+export function webglAvailable() {
+  try {
+    const c = document.createElement('canvas');
+    const gl = c.getContext('webgl2') || c.getContext('webgl') || c.getContext('experimental-webgl');
+    if (!gl) return false;
+    gl.getExtension('WEBGL_lose_context')?.loseContext();
+    return true;
+  } catch (e) {
+    return false;
+  }
+}
 
 class Viewer {
   constructor(root, data) {
@@ -484,12 +627,16 @@ class Viewer {
     this.speed = 1;
     this.t = 0;
     this.opts = { style: 'capsules', contacts: true, trajectories: false, impacts: true, phases: true,
-      labels: true, camera: 'follow' };
+      labels: true, camera: 'follow', props: true, forces: true, com: false, support: false, trails: false,
+      onion: false, curves: false, inPlace: false, snap: false, ortho: false, loop: true };
     Object.assign(this.opts, data.options || {});
     this.rafTimes = [];
     this.renderedFrames = 0;
     this.pxPerMetre = (ch) => this.pxPerMetreAt(ch);
     this.played = 0;  // scene seconds played since the page opened (loops included)
+    this.loopRange = null;  // [t0, t1] or null: the whole scene
+    this.userMarkers = [];
+    this.curvesChar = 0;
     this.buildDom();
     this.buildThree();
     this.bindUi();
@@ -504,7 +651,9 @@ class Viewer {
       counter: $('#kd-counter'), speed: $('#kd-speed'), camera: $('#kd-camera'), style: $('#kd-style'),
       legend: $('#kd-legend'), timeline: $('#kd-timeline'), scene: $('#kd-scene'), fps: $('#kd-fps'),
       overlays: r.querySelectorAll('input[data-overlay]'), title: $('#kd-title'), status: $('#kd-status'),
-      playhead: $('#kd-playhead'),
+      playhead: $('#kd-playhead'), views: r.querySelectorAll('button[data-view]'), curves: $('#kd-curves'),
+      curvesCanvas: $('#kd-curves-plot'), curvesMark: $('#kd-curves-mark'), curvesChar: $('#kd-curves-char'),
+      drop: $('#kd-drop'),
     };
     this.el.title.textContent = this.data.title || 'kinodyn';
     document.title = this.data.title || 'kinodyn';
@@ -520,14 +669,21 @@ class Viewer {
     }
     this.el.camera.value = this.opts.camera;
     this.el.style.value = this.opts.style;
-    this.el.overlays.forEach((cb) => { cb.checked = !!this.opts[cb.dataset.overlay]; });
+    this.syncToggles();
   }
+
+  syncToggles() { this.el.overlays.forEach((cb) => { cb.checked = !!this.opts[cb.dataset.overlay]; }); }
 
   buildThree() {
     const wrap = this.el.canvasWrap;
+    if (!webglAvailable()) throw new WebGLUnavailableError(MSG_NO_WEBGL);
     this.software = softwareGl();
     const aa = this.opts.antialias === undefined || this.opts.antialias === 'auto' ? !this.software : !!this.opts.antialias;
-    this.renderer = new THREE.WebGLRenderer({ antialias: aa, powerPreference: 'high-performance' });
+    try {
+      this.renderer = new THREE.WebGLRenderer({ antialias: aa, powerPreference: 'high-performance' });
+    } catch (e) {
+      throw new WebGLUnavailableError(MSG_NO_WEBGL);
+    }
     this.renderer.setPixelRatio(this.software ? 1 : Math.min(window.devicePixelRatio || 1, 2));
     this.renderer.outputColorSpace = THREE.SRGBColorSpace;
     wrap.appendChild(this.renderer.domElement);
@@ -536,10 +692,14 @@ class Viewer {
     this.camera = new THREE.PerspectiveCamera(40, 1, 0.05, 2000);
     this.camera.up.copy(UP);  // before the controls read it
     this.camera.position.set(3, -6, 2.5);
+    this.orthoCamera = new THREE.OrthographicCamera(-1, 1, 1, -1, 0.05, 2000);
+    this.orthoCamera.up.copy(UP);
     this.controls = new OrbitControls(this.camera, this.renderer.domElement);
     this.controls.enableDamping = true;
     this.controls.target.set(0, 0, 0.9);
     this.controls.maxPolarAngle = Math.PI * 0.495;
+    this.controls.addEventListener('start', () => { this.userZoom = true; });
+    this.renderer.domElement.addEventListener('wheel', () => { this.zoomAt = performance.now(); }, { passive: true });
     const hemi = new THREE.HemisphereLight(0xffffff, 0x8a8070, 1.6);
     hemi.position.set(0, 0, 1);
     const sun = new THREE.DirectionalLight(0xffffff, 1.7);
@@ -550,18 +710,22 @@ class Viewer {
       sphGeo: new THREE.SphereGeometry(1, 16, 12),
       discGeo: new THREE.CircleGeometry(1, 32),
       ringGeo: new THREE.RingGeometry(0.07, 0.11, 28),
+      noseGeo: new THREE.ConeGeometry(0.024, 0.07, 10).translate(0, 0.035, 0),
       shadowMat: displaySpace(new THREE.MeshBasicMaterial({ color: 0x000000, transparent: true, opacity: 0.12,
         depthWrite: false })),
       ringMat: displaySpace(new THREE.MeshBasicMaterial({ color: this.data.contactColor || '#f2b705', depthWrite: false,
         side: THREE.DoubleSide })),
+      noseMat: new THREE.MeshLambertMaterial({ color: 0x2b2f36 }),
       bodies: null,
+      ghosts: null,
+      marks: null,
       labels: this.el.labels,
       floor: 0,
       software: this.software,
     };
     // Shared by every character and scene: never disposed.
-    this.shared = new Set([this.world.sphGeo, this.world.discGeo, this.world.ringGeo,
-      this.world.shadowMat, this.world.ringMat]);
+    this.shared = new Set([this.world.sphGeo, this.world.discGeo, this.world.ringGeo, this.world.noseGeo,
+      this.world.shadowMat, this.world.ringMat, this.world.noseMat]);
     this.resize();
     new ResizeObserver(() => this.resize()).observe(wrap);
   }
@@ -572,6 +736,7 @@ class Viewer {
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
     this.drawTimeline();
+    this.drawCurvesPanel();
   }
 
   // -------------------------------------------------------------------- scene
@@ -584,33 +749,69 @@ class Viewer {
     this.world.floor = spec.floor || 0;
     this.fps = spec.fps;
     this.duration = spec.duration;
-    this.totalFrames = Math.max(1, Math.round(spec.duration * spec.fps) + 1);
-    this.el.scrub.max = String(this.totalFrames - 1);
+    this.loopRange = null;
+    this.userMarkers = [];
+    this.setClock();
     this.sceneGroup = new THREE.Group();
     this.scene.add(this.sceneGroup);
     this.chars = [];
     for (const c of spec.characters) {
       const pos = await decodePositions(c.pos, c.frames, c.parents.length);
       const contacts = c.contacts ? await decodeBytes(c.contacts) : null;
-      const ch = new Character(c, pos, contacts, this.world);
+      const ch = new Character(c, pos, contacts, this.world, this.chars.length);
       this.chars.push(ch);
       this.sceneGroup.add(ch.group);
     }
-    this.world.bodies = new Bodies(this.chars, this.software);
-    this.sceneGroup.add(this.world.bodies.mesh);
+    // Many characters: names only on request (they would cover the crowd).
+    if (this.chars.length > 40 && !this.labelsForced) this.opts.labels = false;
+    this.syncToggles();
+    this.rebuildBodies();
+    this.props = [];
+    for (const p of spec.props || []) {
+      const prop = new Prop(p, await decodePositions(p.pos, p.frames, 1), this.world.floor, this.software);
+      this.props.push(prop);
+      this.sceneGroup.add(prop.group);
+    }
+    this.forces = (spec.forces || []).map((f) => new Forces(f, this.world.sphGeo));
+    for (const f of this.forces) this.sceneGroup.add(f.group);
     this.buildGround();
     this.buildOverlays();
     this.buildLegend();
     this.t = 0;
-    this.frameCamera();
+    this.frameCamera(this.sceneBack());
     this.drawTimeline();
+    this.fillCurvesChars();
+  }
+
+  setClock() {
+    this.totalFrames = Math.max(1, Math.round(this.duration * this.fps) + 1);
+    this.el.scrub.max = String(this.totalFrames - 1);
+  }
+
+  // The capsule meshes (solid characters, translucent references) and the instanced marks, for the
+  // characters of the scene now (rebuilt when a file is dropped on the page).
+  rebuildBodies() {
+    for (const k of ['bodies', 'ghosts']) {
+      if (this.world[k]) { this.sceneGroup.remove(this.world[k].mesh); this.world[k].dispose(); this.world[k] = null; }
+    }
+    if (this.world.marks) { this.sceneGroup.remove(this.world.marks.group); this.world.marks.dispose(); }
+    const solid = this.chars.filter((c) => !c.ghost), ghosts = this.chars.filter((c) => c.ghost);
+    this.world.bodies = new Bodies(solid, this.software);
+    this.sceneGroup.add(this.world.bodies.mesh);
+    if (ghosts.length) {
+      this.world.ghosts = new Bodies(ghosts, this.software, true);
+      this.sceneGroup.add(this.world.ghosts.mesh);
+    }
+    this.world.marks = new Marks(this.chars.length, this.world);
+    this.sceneGroup.add(this.world.marks.group);
   }
 
   clearScene() {
     if (!this.sceneGroup) return;
     for (const ch of this.chars) ch.dispose();
-    if (this.world.bodies) this.world.bodies.dispose();
-    this.world.bodies = null;
+    for (const k of ['bodies', 'ghosts']) { if (this.world[k]) this.world[k].dispose(); this.world[k] = null; }
+    if (this.world.marks) this.world.marks.dispose();
+    this.world.marks = null;
     this.sceneGroup.traverse((o) => {
       if (o.geometry && !this.shared.has(o.geometry)) o.geometry.dispose();
       for (const m of o.material ? [].concat(o.material) : []) if (!this.shared.has(m)) m.dispose();
@@ -618,19 +819,64 @@ class Viewer {
     this.scene.remove(this.sceneGroup);
     this.sceneGroup = null;
     this.chars = [];
+    this.props = [];
+    this.forces = [];
   }
 
-  // Bounds of every character's root over the whole scene.
+  // Add a character (a dropped file) to the scene shown now.
+  addCharacter(spec, pos) {
+    const ch = new Character(spec, pos, null, this.world, this.chars.length);
+    this.chars.push(ch);
+    this.sceneGroup.add(ch.group);
+    this.rebuildBodies();
+    const end = spec.start + (spec.frames - 1) / spec.fps;
+    if (end > this.duration) { this.duration = end; this.setClock(); }
+    this.buildLegend();
+    this.drawTimeline();
+    this.fillCurvesChars();
+    this.frameCamera(this.camera.position.clone().sub(this.controls.target));  // the same view, framing all
+    return ch;
+  }
+
+  async dropFiles(files) {
+    const added = [];
+    for (const file of files) {
+      if (!/\.bvh$/i.test(file.name)) { this.note(`${file.name}: only BVH files can be dropped here`); continue; }
+      try {
+        const text = await file.text();
+        const color = this.data.palette[this.chars.length % this.data.palette.length];
+        const { spec, pos } = bvhCharacter(text, file.name.replace(/\.bvh$/i, ''), color, this.data.radiusRules || []);
+        added.push(this.addCharacter(spec, pos));
+        this.note(`added ${file.name}: ${spec.frames} frames at ${spec.fps.toFixed(0)} fps`);
+      } catch (e) {
+        this.note(`${file.name}: not a BVH file this page can read (${e.message || e})`);
+      }
+    }
+    return added;
+  }
+
+  note(text) {
+    const st = this.el.status;
+    st.textContent = text;
+    st.style.display = '';
+    clearTimeout(this.noteTimer);
+    this.noteTimer = setTimeout(() => { st.style.display = 'none'; }, 3000);
+  }
+
+  // Bounds of every character's points over the whole scene.
   rootBounds() {
     const lo = new THREE.Vector3(Infinity, Infinity, Infinity), hi = new THREE.Vector3(-Infinity, -Infinity, -Infinity);
     for (const ch of this.chars) {
       const P3 = ch.P * 3;
       for (let f = 0; f < ch.F; f += Math.max(1, Math.floor(ch.F / 2000))) {
-        for (let p = 0; p < ch.P; p++) {
+        for (let p = 0; p < ch.P; p += this.chars.length > 50 ? ch.P : 1) {
           _a.set(ch.pos[f * P3 + 3 * p], ch.pos[f * P3 + 3 * p + 1], ch.pos[f * P3 + 3 * p + 2]);
           lo.min(_a); hi.max(_a);
         }
       }
+    }
+    for (const pr of this.props || []) {
+      for (let f = 0; f < pr.F; f++) { _a.fromArray(pr.pos, 3 * f); lo.min(_a); hi.max(_a); }
     }
     if (!isFinite(lo.x)) { lo.set(-1, -1, 0); hi.set(1, 1, 2); }
     return [lo, hi];
@@ -642,10 +888,14 @@ class Viewer {
     const ext = Math.max(hi.x - lo.x, hi.y - lo.y);
     const size = 2 * Math.ceil((ext + 12) / 2);
     const floor = this.world.floor;
+    // The floor is pushed back in depth so that the grid lines on it never dash in and out far away.
     const plane = new THREE.Mesh(new THREE.PlaneGeometry(size * 1.6, size * 1.6),
-      displaySpace(new THREE.MeshBasicMaterial({ color: FLOOR_COLOR })));
+      displaySpace(new THREE.MeshBasicMaterial({ color: FLOOR_COLOR, polygonOffset: true, polygonOffsetFactor: 2,
+        polygonOffsetUnits: 4 })));
     plane.position.set(cx, cy, floor - 0.001);
-    const grid = makeGrid(size, 0x9aa3ad, 0xc4cad1, FLOOR_COLOR, 0.8);
+    // One-metre squares; five-metre ones on a big floor (a crowd's), where 1 m lines would be a blur.
+    const step = size > 40 ? 5 : 1;
+    const grid = makeGrid(step > 1 ? Math.ceil(size / 10) * 10 : size, 0x7d8792, 0xaeb6bf, FLOOR_COLOR, 1.0, step);
     grid.position.set(cx, cy, floor + 0.001);
     grid.renderOrder = 1;  // after the floor
     // World axes at the origin: X red, Y green (short, on the floor).
@@ -655,7 +905,7 @@ class Viewer {
     setArrow(ay, new THREE.Vector3(0, 0, floor + 0.004), new THREE.Vector3(0, 0.5, floor + 0.004), 0.008);
     axes.add(ax, ay);
     this.sceneGroup.add(plane, grid, axes);
-    this.scene.fog = new THREE.Fog(0xdfe6ee, size * 0.6, size * 1.4);
+    this.scene.fog = new THREE.Fog(0xdfe6ee, size * 0.9, size * 2.2);
   }
 
   buildOverlays() {
@@ -693,43 +943,97 @@ class Viewer {
   buildLegend() {
     const lg = this.el.legend;
     lg.innerHTML = '';
-    this.chars.forEach((ch) => {
+    const add = (color, text, cls) => {
       const item = document.createElement('span');
-      item.className = 'kd-legend-item';
+      item.className = `kd-legend-item ${cls || ''}`;
       const sw = document.createElement('span');
       sw.className = 'kd-swatch';
-      sw.style.background = ch.spec.color;
-      item.append(sw, document.createTextNode(ch.spec.name));
+      sw.style.background = color;
+      item.append(sw, document.createTextNode(text));
       lg.appendChild(item);
-    });
+    };
+    if (this.chars.length <= 40) {
+      for (const ch of this.chars) add(ch.spec.color, ch.ghost ? `${ch.spec.name} (reference)` : ch.spec.name, ch.ghost ? 'kd-ghost' : '');
+    } else add('#888', `${this.chars.length} characters`);
+    const props = (this.props || []).filter((p) => p.spec.label);
+    if (props.length <= 6) for (const p of props) add(p.spec.color, p.spec.label);
+    else add(props[0].spec.color, `${props.length} objects`);
   }
 
-  // Place the camera on the default side view so that every point of every character in the current
-  // frame is inside the picture (a point at offset d from the target, r to the side, needs the camera
-  // at least r / tan(fov / 2) - d.forward away).
-  frameCamera() {
-    this.updateCharacters();
-    const c = this.centroid(new THREE.Vector3());
-    const back = new THREE.Vector3(0.45, -1, 0.42).normalize();  // from the target towards the camera
-    const fwd = back.clone().negate();
-    const right = new THREE.Vector3().crossVectors(fwd, UP).normalize();
-    const up = new THREE.Vector3().crossVectors(right, fwd);
+  // -------------------------------------------------------------------- camera
+  activeCamera() { return this.opts.ortho ? this.orthoCamera : this.camera; }
+
+  // Distance from target c along back (unit, towards the camera) at which every character's current
+  // pose and every prop shown is inside the picture (a point at offset d from the target, r to the
+  // side, needs the camera at least r / tan(fov / 2) - d.forward away).
+  requiredDistance(c, back) {
+    const fwd = _fwd.copy(back).negate();
+    const right = _nose.crossVectors(fwd, UP);
+    if (right.lengthSq() < 1e-8) right.set(1, 0, 0); else right.normalize();
+    const up = _d.crossVectors(right, fwd);
     const tv = Math.tan(THREE.MathUtils.degToRad(this.camera.fov) / 2);
     const th = tv * Math.max(this.camera.aspect, 0.3);
-    let dist = 3.0;
+    let dist = 2.5;
+    const need = (x, y, z, pad) => {
+      _a.set(x - c.x, y - c.y, z - c.z);
+      const n = Math.max((Math.abs(_a.dot(right)) + pad) / th, (Math.abs(_a.dot(up)) + pad) / tv) - _a.dot(fwd);
+      dist = Math.max(dist, n * 1.1 + 0.3);
+    };
+    const crowd = this.chars.length > 50;
     for (const ch of this.chars) {
-      for (let p = 0; p < ch.P; p++) {
-        _a.set(ch.cur[3 * p], ch.cur[3 * p + 1], ch.cur[3 * p + 2]).sub(c);
-        const need = Math.max(Math.abs(_a.dot(right)) / th, Math.abs(_a.dot(up)) / tv) - _a.dot(fwd);
-        dist = Math.max(dist, need * 1.15 + 0.5);
-      }
+      if (crowd) { need(ch.cur[0], ch.cur[1], ch.cur[2], 0.9); continue; }
+      for (let p = 0; p < ch.P; p++) need(ch.cur[3 * p], ch.cur[3 * p + 1], ch.cur[3 * p + 2], ch.jr[p] + 0.02);
+      if (this.opts.labels) need(ch.headTop.x, ch.headTop.y, ch.headTop.z + 0.12, 0.05);  // its name label
+      need(ch.cur[0], ch.cur[1], this.world.floor, 0.05);  // the feet's shadow, the floor under them
     }
+    for (const pr of this.props || []) if (pr.visible) need(pr.current.x, pr.current.y, pr.current.z, pr.spec.size[0] || 0.1);
+    return dist;
+  }
+
+  placeCamera(c, back, dist) {
     this.controls.target.copy(c);
     this.camera.position.copy(c).addScaledVector(back, dist);
     this.camera.near = Math.max(0.02, dist / 500);
     this.camera.far = dist * 40 + 200;
     this.camera.updateProjectionMatrix();
     this.controls.update();
+  }
+
+  sceneBack() { return this.spec && this.spec.view ? new THREE.Vector3(...this.spec.view) : DEFAULT_BACK; }
+
+  // Frame every character of the current frame, looking along back (default: the side view).
+  frameCamera(back = DEFAULT_BACK) {
+    this.updateCharacters();
+    const c = this.centroid(new THREE.Vector3());
+    const b = back.clone().normalize();
+    this.placeCamera(c, b, this.requiredDistance(c, b));
+  }
+
+  // Which way the characters face now (mean of their facings; their travel when none is known).
+  facing(out) {
+    out.set(0, 0, 0);
+    for (const ch of this.chars) {
+      const f = ch.spec.face;
+      if (!f || f.left === undefined) continue;
+      const l = 3 * f.left, r = 3 * f.right;
+      out.x -= ch.cur[r + 1] - ch.cur[l + 1];
+      out.y += ch.cur[r] - ch.cur[l];
+    }
+    if (out.lengthSq() < 1e-8) out.set(0, 1, 0);
+    return out.normalize();
+  }
+
+  // Camera presets: 'front' (facing the characters), 'side' (their right side), 'top' (from above).
+  setView(name) {
+    this.updateCharacters();
+    const f = this.facing(new THREE.Vector3());
+    const back = new THREE.Vector3();
+    if (name === 'front') back.copy(f).addScaledVector(UP, 0.18);
+    else if (name === 'side') back.crossVectors(f, UP).addScaledVector(UP, 0.12);
+    else if (name === 'top') back.copy(UP).addScaledVector(f, -0.02);
+    else back.copy(this.sceneBack());
+    this.view = name;
+    this.frameCamera(back);
   }
 
   // Middle of the characters' roots in the current frame (z lowered a little: look at the chest).
@@ -758,14 +1062,32 @@ class Viewer {
     el.scene.addEventListener('change', () => { this.loadScene(Number(el.scene.value)); });
     el.overlays.forEach((cb) => cb.addEventListener('change', () => {
       this.opts[cb.dataset.overlay] = cb.checked;
+      if (cb.dataset.overlay === 'labels') this.labelsForced = true;
       this.drawTimeline();
+      this.drawCurvesPanel();
     }));
+    el.views.forEach((b) => b.addEventListener('click', () => this.setView(b.dataset.view)));
+    el.curvesChar.addEventListener('change', () => { this.curvesChar = Number(el.curvesChar.value); this.drawCurvesPanel(); });
+    this.root.querySelector('#kd-in').addEventListener('click', () => this.setLoopPoint(0));
+    this.root.querySelector('#kd-out').addEventListener('click', () => this.setLoopPoint(1));
     window.addEventListener('keydown', (e) => {
       if (e.target && (e.target.tagName === 'SELECT' || e.target.tagName === 'INPUT' && e.target.type !== 'range')) return;
+      const k = e.key.toLowerCase();
       if (e.code === 'Space') { this.setPlaying(!this.playing); e.preventDefault(); }
       else if (e.code === 'ArrowRight') { this.setPlaying(false); this.seekFrame(this.frameIndex() + 1); }
       else if (e.code === 'ArrowLeft') { this.setPlaying(false); this.seekFrame(this.frameIndex() - 1); }
-      else if (e.code === 'Home') { this.seekFrame(0); }
+      else if (e.code === 'Home') { this.seek(this.loopRange ? this.loopRange[0] : 0); }
+      else if (k === 'i') this.setLoopPoint(0);
+      else if (k === 'o') this.setLoopPoint(1);
+      else if (k === 'x') this.setLoopRange(null);
+      else if (k === 'l') { this.opts.loop = !this.opts.loop; this.syncToggles(); }
+      else if (k === 'm') this.addMarker(this.t);
+      else if (k === 'f') this.frameCamera(this.camera.position.clone().sub(this.controls.target));
+      else if (k === '1') this.setView('front');
+      else if (k === '3') this.setView('side');
+      else if (k === '7') this.setView('top');
+      else if (k === '5') { this.opts.ortho = !this.opts.ortho; this.syncToggles(); }
+      else if (k === ']' || k === '[') this.jumpMarker(k === ']' ? 1 : -1);
     });
     const tl = el.timeline;
     const seekAt = (e) => {
@@ -778,9 +1100,23 @@ class Viewer {
     tl.addEventListener('pointerdown', (e) => { drag = true; seekAt(e); });
     window.addEventListener('pointermove', (e) => { if (drag) seekAt(e); });
     window.addEventListener('pointerup', () => { drag = false; });
+    // Drop a BVH file anywhere on the page to add it to the scene.
+    const drop = el.drop;
+    window.addEventListener('dragover', (e) => { e.preventDefault(); drop.style.display = ''; });
+    window.addEventListener('dragleave', (e) => { if (!e.relatedTarget) drop.style.display = 'none'; });
+    window.addEventListener('drop', (e) => {
+      e.preventDefault();
+      drop.style.display = 'none';
+      const files = [...(e.dataTransfer ? e.dataTransfer.files : [])];
+      this.dropping = this.dropFiles(files);
+    });
   }
 
   setPlaying(p) {
+    if (p && !this.playing) {
+      const [, b] = this.range();
+      if (this.t >= b - 1e-9) this.t = this.range()[0];
+    }
     this.playing = p;
     this.el.play.textContent = p ? '❚❚' : '▶';
     this.el.play.title = p ? 'pause (space)' : 'play (space)';
@@ -792,11 +1128,43 @@ class Viewer {
 
   seek(t) { this.t = Math.min(Math.max(t, 0), this.duration); }
 
-  // -------------------------------------------------------------------- timeline (phases, impacts)
+  // -------------------------------------------------------------------- loop range, markers
+  range() { return this.loopRange || [0, this.duration]; }
+
+  setLoopRange(r) {
+    this.loopRange = r ? [Math.max(0, Math.min(r[0], r[1])), Math.min(this.duration, Math.max(r[0], r[1]))] : null;
+    if (this.loopRange && this.loopRange[1] - this.loopRange[0] < 1 / this.fps) this.loopRange = null;
+    this.drawTimeline();
+  }
+
+  // Set the start (0) or end (1) of the loop range at the current time.
+  setLoopPoint(which) {
+    const r = this.range().slice();
+    r[which] = this.t;
+    this.setLoopRange(r);
+  }
+
+  allMarkers() {
+    return [...(this.spec?.markers || []), ...this.userMarkers].sort((a, b) => a.t - b.t);
+  }
+
+  addMarker(t, label = '') {
+    this.userMarkers.push({ t, label: label || `${t.toFixed(2)} s`, color: '#1d2430' });
+    this.drawTimeline();
+  }
+
+  jumpMarker(dir) {
+    const ms = this.allMarkers().map((m) => m.t);
+    const next = dir > 0 ? ms.find((t) => t > this.t + 1e-6) : ms.reverse().find((t) => t < this.t - 1e-6);
+    if (next !== undefined) this.seek(next);
+  }
+
+  // -------------------------------------------------------------------- timeline (phases, stages, impacts, markers)
   timelineRows() {
     const rows = [];
-    if (this.opts.phases) for (const ph of this.spec?.phases || []) rows.push({ kind: 'phase', ph });
-    if (this.opts.impacts && (this.spec?.impacts || []).length) rows.push({ kind: 'impacts' });
+    if (this.opts.phases) for (const ph of this.spec?.phases || []) rows.push({ kind: 'phase', ph, label: ph.label });
+    if (this.opts.impacts && (this.spec?.impacts || []).length) rows.push({ kind: 'impacts', label: 'impacts' });
+    if (this.allMarkers().length || this.loopRange) rows.push({ kind: 'markers', label: 'markers' });
     return rows;
   }
 
@@ -805,10 +1173,11 @@ class Viewer {
     if (!this.spec) return;
     const rows = this.timelineRows();
     const rowH = 16, pad = 4;
-    const h = rows.length ? rows.length * (rowH + 3) + 2 * pad + 12 : 0;
+    const legend = rows.some((r) => r.kind === 'phase');
+    const h = rows.length ? rows.length * (rowH + 3) + 2 * pad + (legend ? 12 : 0) : 0;
     cv.style.height = `${h}px`;
     cv.style.display = rows.length ? '' : 'none';
-    if (!rows.length) return;
+    if (!rows.length) { this.movePlayhead(); return; }
     const dpr = window.devicePixelRatio || 1;
     const w = cv.clientWidth;
     if (cv.width !== Math.round(w * dpr) || cv.height !== Math.round(h * dpr)) {
@@ -821,16 +1190,16 @@ class Viewer {
     ctx.font = '11px system-ui, sans-serif';
     ctx.textBaseline = 'middle';
     let labelW = 60;
-    for (const r of rows) labelW = Math.max(labelW, ctx.measureText(r.kind === 'phase' ? r.ph.label : 'impacts').width + 14);
+    for (const r of rows) labelW = Math.max(labelW, ctx.measureText(r.label).width + 14);
     labelW = Math.min(labelW, w * 0.35);
     this.tlLeft = labelW;
     const x0 = labelW, x1 = w - 8, D = Math.max(this.duration, 1e-6);
-    const X = (t) => x0 + (x1 - x0) * (t / D);
-    const colors = this.data.phaseColors || {};
+    const X = (t) => x0 + (x1 - x0) * Math.min(Math.max(t / D, 0), 1);
+    const colors = { ...(this.data.phaseColors || {}), ...(this.data.stageColors || {}) };
     rows.forEach((r, i) => {
       const y = pad + i * (rowH + 3);
       ctx.fillStyle = '#333';
-      ctx.fillText(r.kind === 'phase' ? r.ph.label : 'impacts', 4, y + rowH / 2, labelW - 8);
+      ctx.fillText(r.label, 4, y + rowH / 2, labelW - 8);
       ctx.fillStyle = '#eceff3';
       ctx.fillRect(x0, y, x1 - x0, rowH);
       if (r.kind === 'phase') {
@@ -838,14 +1207,37 @@ class Viewer {
           ctx.fillStyle = (r.ph.colors && r.ph.colors[lab]) || colors[lab] || '#888';
           ctx.fillRect(X(a), y, Math.max(X(b) - X(a), 1), rowH);
         }
-      } else {
+      } else if (r.kind === 'impacts') {
         for (const im of this.spec.impacts) {
           ctx.fillStyle = im.color || '#d62728';
           ctx.fillRect(X(im.t) - 1.5, y, 3, rowH);
         }
+      } else {
+        let lastEnd = -Infinity;
+        for (const m of this.allMarkers()) {
+          ctx.fillStyle = m.color || '#1d2430';
+          ctx.beginPath();
+          ctx.moveTo(X(m.t), y + rowH);
+          ctx.lineTo(X(m.t) - 4, y + 4);
+          ctx.lineTo(X(m.t) + 4, y + 4);
+          ctx.fill();
+          const tw = ctx.measureText(m.label).width;
+          if (m.label && X(m.t) + 6 > lastEnd && X(m.t) + 6 + tw < x1) {
+            ctx.fillText(m.label, X(m.t) + 6, y + rowH / 2);
+            lastEnd = X(m.t) + 10 + tw;
+          }
+        }
       }
     });
-    // Legend of phase labels.
+    if (this.loopRange) {  // the loop range: shaded over every row, with brackets
+      const [a, b] = this.loopRange, yb = pad + rows.length * (rowH + 3) - 3;
+      ctx.fillStyle = 'rgba(30, 120, 220, 0.16)';
+      ctx.fillRect(X(a), pad - 2, X(b) - X(a), yb - pad + 2);
+      ctx.fillStyle = '#1e78dc';
+      ctx.fillRect(X(a) - 1, pad - 2, 2, yb - pad + 2);
+      ctx.fillRect(X(b) - 1, pad - 2, 2, yb - pad + 2);
+    }
+    // Legend of phase and stage labels.
     const labs = new Map();
     for (const r of rows) if (r.kind === 'phase') for (const s of r.ph.spans) labs.set(s[2], (r.ph.colors && r.ph.colors[s[2]]) || colors[s[2]] || '#888');
     let lx = x0;
@@ -861,7 +1253,7 @@ class Viewer {
     }
     this.tlX0 = x0;
     this.tlX1 = x1;
-    this.el.playhead.style.height = `${h - 14}px`;
+    this.el.playhead.style.height = `${h - (legend ? 14 : 2)}px`;
     this.movePlayhead();
   }
 
@@ -874,17 +1266,69 @@ class Viewer {
     ph.style.transform = `translateX(${(this.tlX0 + (this.tlX1 - this.tlX0) * u - 1).toFixed(1)}px)`;
   }
 
+  // -------------------------------------------------------------------- curves panel
+  fillCurvesChars() {
+    const sel = this.el.curvesChar;
+    sel.innerHTML = '';
+    this.chars.slice(0, 200).forEach((ch, i) => {
+      const o = document.createElement('option');
+      o.value = String(i);
+      o.textContent = ch.spec.name;
+      sel.appendChild(o);
+    });
+    this.curvesChar = Math.min(this.curvesChar, Math.max(this.chars.length - 1, 0));
+    sel.value = String(this.curvesChar);
+    this.curvesCache = new Map();
+    this.drawCurvesPanel();
+  }
+
+  curvesOf(i) {
+    if (!this.curvesCache) this.curvesCache = new Map();
+    if (!this.curvesCache.has(i)) this.curvesCache.set(i, characterCurves(this.chars[i], this.world.floor));
+    return this.curvesCache.get(i);
+  }
+
+  drawCurvesPanel() {
+    const panel = this.el.curves;
+    if (!panel) return;
+    const on = !!this.opts.curves && this.chars && this.chars.length > 0;
+    panel.style.display = on ? '' : 'none';
+    if (!on) return;
+    const ch = this.chars[this.curvesChar];
+    this.curvesMap = drawCurves(this.el.curvesCanvas, this.curvesOf(this.curvesChar), this.duration, ch.spec.name);
+    this.moveCurvesMark();
+  }
+
+  moveCurvesMark() {
+    if (!this.opts.curves || !this.curvesMap) return;
+    const { x0, x1 } = this.curvesMap;
+    const u = Math.min(Math.max(this.t / Math.max(this.duration, 1e-6), 0), 1);
+    this.el.curvesMark.style.transform = `translateX(${(x0 + (x1 - x0) * u - 1).toFixed(1)}px)`;
+  }
+
+  curvesState() {
+    if (!this.chars.length) return null;
+    return { character: this.chars[this.curvesChar].spec.name, time: this.t, values: curvesAt(this.curvesOf(this.curvesChar), this.t),
+      markX: this.curvesMap ? this.curvesMap.x0 + (this.curvesMap.x1 - this.curvesMap.x0) * (this.t / Math.max(this.duration, 1e-6)) : null };
+  }
+
   // -------------------------------------------------------------------- frame loop
   updateCharacters() {
+    const marks = this.world.marks;
+    if (marks) marks.begin();
     for (const ch of this.chars || []) ch.update(this.t, this.opts, this.world);
-    const bodies = this.world.bodies;
-    if (bodies) {
+    if (marks) marks.end();
+    for (const k of ['bodies', 'ghosts']) {
+      const bodies = this.world[k];
+      if (!bodies) continue;
       bodies.mesh.visible = this.opts.style === 'capsules';
       if (bodies.mesh.visible) {
         bodies.texture.needsUpdate = true;
         bodies.setDetail(this.pxPerMetre);
       }
     }
+    for (const p of this.props || []) p.update(this.t, this.opts);
+    for (const f of this.forces || []) f.update(this.t, this.opts);
   }
 
   // Pixels a metre on screen at a character's root (from the camera's last placement).
@@ -910,6 +1354,9 @@ class Viewer {
     for (const l of this.extraTraj || []) l.visible = !!this.opts.trajectories;
   }
 
+  // Follow and orbit keep every character in the picture: the target follows the characters and the
+  // distance grows at once when someone would leave the picture and shrinks slowly when they gather
+  // (not for a few seconds after the user zooms with the wheel).
   updateCamera() {
     const mode = this.opts.camera;
     this.controls.autoRotate = mode === 'orbit';
@@ -919,19 +1366,62 @@ class Viewer {
       const step = c.sub(this.controls.target).multiplyScalar(0.12);
       this.controls.target.add(step);
       this.camera.position.add(step);
+      if (!(performance.now() - (this.zoomAt || -1e9) < 4000)) {
+        const back = (this._back || (this._back = new THREE.Vector3())).subVectors(this.camera.position, this.controls.target);
+        const cur = back.length();
+        back.divideScalar(Math.max(cur, 1e-9));
+        const need = this.requiredDistance(this.controls.target, back);
+        const dist = cur + (need - cur) * (need > cur ? 0.3 : 0.04);
+        this.camera.position.copy(this.controls.target).addScaledVector(back, dist);
+        this.camera.near = Math.max(0.02, dist / 500);
+        this.camera.far = dist * 40 + 200;
+        this.camera.updateProjectionMatrix();
+      }
     }
     this.controls.update();
+    if (this.opts.ortho) {  // the orthographic camera mirrors the perspective one, same size at the target
+      const oc = this.orthoCamera, dist = this.camera.position.distanceTo(this.controls.target);
+      const hh = dist * Math.tan(THREE.MathUtils.degToRad(this.camera.fov) / 2), hw = hh * this.camera.aspect;
+      oc.position.copy(this.camera.position);
+      oc.quaternion.copy(this.camera.quaternion);
+      oc.left = -hw; oc.right = hw; oc.top = hh; oc.bottom = -hh;
+      oc.near = -dist * 4; oc.far = this.camera.far;
+      oc.updateProjectionMatrix();
+      oc.updateMatrixWorld();
+    }
   }
 
+  // Name labels above the heads, moved up where they would overlap (bottom ones stay in place).
   updateLabels() {
     const show = this.opts.labels;
     const w = this.el.canvasWrap.clientWidth, h = this.el.canvasWrap.clientHeight;
+    const cam = this.activeCamera();
+    const items = [];
     for (const ch of this.chars || []) {
       if (!show) { ch.label.style.display = 'none'; continue; }
-      _a.copy(ch.headTop).project(this.camera);
-      if (_a.z > 1 || _a.z < -1) { ch.label.style.display = 'none'; continue; }
-      ch.label.style.display = '';
-      ch.label.style.transform = `translate(-50%, -100%) translate(${((_a.x + 1) / 2 * w).toFixed(1)}px, ${((1 - _a.y) / 2 * h).toFixed(1)}px)`;
+      _a.copy(ch.headTop).project(cam);
+      if (_a.z > 1 || _a.z < -1 || Math.abs(_a.x) > 1.2 || Math.abs(_a.y) > 1.2) { ch.label.style.display = 'none'; continue; }
+      if (ch.label.style.display === 'none' || !ch.labelW) {
+        ch.label.style.display = '';
+        ch.labelW = ch.label.offsetWidth || 60;
+        ch.labelH = ch.label.offsetHeight || 16;
+      }
+      items.push({ ch, x: ((_a.x + 1) / 2) * w, y: ((1 - _a.y) / 2) * h });
+    }
+    items.sort((a, b) => b.y - a.y);
+    const placed = [];
+    for (const it of items) {
+      const hw = it.ch.labelW / 2 + 2, hh = it.ch.labelH + 2;
+      let y = it.y;
+      for (let moved = true, n = 0; moved && n < placed.length + 1; n++) {
+        moved = false;
+        for (const p of placed) {
+          if (Math.abs(p.x - it.x) < hw + p.hw && y > p.y - p.hh && y - hh < p.y) { y = p.y - p.hh; moved = true; }
+        }
+      }
+      placed.push({ x: it.x, y, hw, hh });
+      it.ch.labelRect = [it.x - hw + 2, y - hh + 2, it.x + hw - 2, y];
+      it.ch.label.style.transform = `translate(-50%, -100%) translate(${it.x.toFixed(1)}px, ${y.toFixed(1)}px)`;
     }
   }
 
@@ -963,24 +1453,31 @@ class Viewer {
   }
 
   tick(now) {
-    // Real time, except after a long stall (a hidden tab): then resume without a jump.
-    const dt = this.lastNow === undefined ? 0 : Math.min((now - this.lastNow) / 1000, 0.5);
+    // Real time, except after a long stall (a hidden tab): then resume without a jump. A frame may take
+    // up to a second (software WebGL on a busy machine) and the clock still keeps real time.
+    const dt = this.lastNow === undefined ? 0 : Math.min((now - this.lastNow) / 1000, 1.0);
     this.lastNow = now;
     this.rafTimes.push(now);
     if (this.rafTimes.length > 600) this.rafTimes.splice(0, this.rafTimes.length - 600);
     if (this.playing && this.duration > 0) {
+      const [a, b] = this.range();
       this.t += dt * this.speed;
       this.played += dt * this.speed;
-      if (this.t > this.duration) this.t = this.opts.loop === false ? this.duration : this.t % this.duration;
+      if (this.loopRange && this.t < a) this.t = a;
+      if (this.t > b) {
+        if (this.opts.loop === false) { this.t = b; this.setPlaying(false); }
+        else this.t = a + ((this.t - a) % Math.max(b - a, 1e-6));
+      }
     }
     this.updateCharacters();
     this.updateOverlays();
     this.updateCamera();
-    this.renderer.render(this.scene, this.camera);
+    this.renderer.render(this.scene, this.activeCamera());
     this.updateLabels();
     this.updateHud(this.t !== this.lastT && !this.playing);
     this.lastT = this.t;
     this.movePlayhead();
+    this.moveCurvesMark();
     this.renderedFrames++;
   }
 
@@ -1002,26 +1499,58 @@ class Viewer {
 
 // ------------------------------------------------------------------------------------------ entry
 
+// What the page shows and does, for tests and people at the console.
+function pageState(v) {
+  return {
+    opts: { ...v.opts }, time: v.t, loopRange: v.loopRange, markers: v.allMarkers(), view: v.view || null,
+    camera: { position: v.camera.position.toArray(), target: v.controls.target.toArray(),
+      ortho: v.activeCamera().isOrthographicCamera === true },
+    characters: v.chars.map((ch) => ({ name: ch.spec.name, ghost: ch.ghost, frame: ch.frame, root: [ch.cur[0], ch.cur[1], ch.cur[2]],
+      label: ch.label.style.display === 'none' ? null : ch.labelRect || null, dropped: !!ch.spec.dropped,
+      com: ch.extras ? ch.extras.balance.c.toArray() : null, support: ch.extras ? ch.extras.balance.hull : null,
+      comInside: ch.extras ? ch.extras.balance.inside : null })),
+    props: (v.props || []).map((p) => ({ label: p.spec.label, shape: p.spec.shape, visible: p.visible, position: p.current.toArray() })),
+    forces: (v.forces || []).map((f) => f.shown),
+    noses: v.world.marks ? v.world.marks.noses.count : 0,
+    drawCalls: v.renderer.info.render.calls,
+    curves: v.opts.curves ? v.curvesState() : null,
+  };
+}
+
+function showNoWebgl(message) {
+  const st = document.getElementById('kd-status');
+  if (st) {
+    st.className = 'kd-nowebgl';
+    st.textContent = message;
+    st.style.display = '';
+  }
+}
+
 async function main() {
   const root = document.getElementById('kd-root');
-  const boot = { ready: false, errors: [] };
+  const boot = { ready: false, errors: [], webgl: true };
   window.kinodynViewer = boot;
   let viewer;
   try {
     const data = JSON.parse(document.getElementById('kinodyn-data').textContent);
     viewer = new Viewer(root, data);
-    // The page's small scripting API (used by tests and by people at the console).
     const api = {
       viewer,
       ready: false,
+      webgl: true,
       fps: (ms) => viewer.measuredFps(ms),
       play: () => viewer.setPlaying(true),
       pause: () => viewer.setPlaying(false),
       seek: (t) => viewer.seek(t),
       seekFrame: (f) => viewer.seekFrame(f),
       setSpeed: (s) => { viewer.speed = s; viewer.el.speed.value = String(s); },
-      set: (k, v) => { viewer.opts[k] = v; },
+      set: (k, v) => { viewer.opts[k] = v; viewer.syncToggles(); viewer.drawTimeline(); viewer.drawCurvesPanel(); },
       loadScene: (i) => viewer.loadScene(i),
+      setView: (name) => viewer.setView(name),
+      setLoopRange: (a, b) => viewer.setLoopRange(a === null ? null : [a, b]),
+      addMarker: (t, label) => viewer.addMarker(t, label),
+      loadBvh: (text, name) => viewer.dropFiles([new File([text], `${name || 'dropped'}.bvh`)]),
+      state: () => pageState(viewer),
     };
     Object.defineProperties(api, {
       frame: { get: () => viewer.frameIndex() },
@@ -1039,7 +1568,11 @@ async function main() {
     viewer.start();
     api.ready = true;
   } catch (e) {
-    if (viewer) viewer.fail(e); else {
+    if (e instanceof WebGLUnavailableError) {
+      boot.webgl = false;
+      boot.message = e.message;
+      showNoWebgl(e.message);
+    } else if (viewer) viewer.fail(e); else {
       boot.errors.push(String(e));
       const st = document.getElementById('kd-status');
       if (st) st.textContent = `error: ${e.message || e}`;

@@ -20,6 +20,7 @@ __all__ = [
     "PALETTE",
     "PHASE_COLORS",
     "PHASE_LABELS",
+    "STAGE_COLORS",
     "character_colors",
     "color",
     "rgb",
@@ -34,6 +35,9 @@ PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b
 PHASE_COLORS = {"LS": "#59a14f", "RS": "#f28e2b", "DS": "#4e79a7", "flight": "#c9ced6", "Err": "#e15759"}
 #: Label of each support-phase code (:class:`kinodyn.phases.Phase`) in the bars coloured by :data:`PHASE_COLORS`.
 PHASE_LABELS = {0b000: "DS", 0b001: "RS", 0b010: "LS", 0b011: "Err", 0b111: "flight"}
+
+#: Stage colours of a character's timeline (what drives it: the dynamic response fills these).
+STAGE_COLORS = {"motion data": "#76b7b2", "simulation": "#b07aa1", "transition": "#edc948", "clip": "#9c755f"}
 
 CONTACT_COLOR = "#f2b705"  #: foot-contact markers
 IMPACT_COLOR = "#d62728"  #: impact points and impulse arrows

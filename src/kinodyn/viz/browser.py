@@ -56,8 +56,12 @@ def unavailable_reason() -> str | None:
 
 
 @contextlib.contextmanager
-def chromium(width: int = 1280, height: int = 720):
-    """A headless Chromium WebDriver with software WebGL and browser-console logging."""
+def chromium(width: int = 1280, height: int = 720, args: tuple[str, ...] = ()):
+    """A headless Chromium WebDriver with software WebGL and browser-console logging.
+
+    Args:
+        args: more Chromium switches (``("--disable-webgl",)`` shows a page as a browser without WebGL).
+    """
     reason = unavailable_reason()
     if reason:
         raise BrowserUnavailableError(reason)
@@ -70,7 +74,7 @@ def chromium(width: int = 1280, height: int = 720):
     for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", f"--window-size={width},{height}",
               "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
               "--disable-background-timer-throttling", "--disable-renderer-backgrounding",
-              "--allow-file-access-from-files", "--no-first-run", "--disable-extensions"):
+              "--allow-file-access-from-files", "--no-first-run", "--disable-extensions", *args):
         opts.add_argument(a)
     opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     drv = webdriver.Chrome(service=Service(executable_path=driver_path), options=opts)

@@ -4,7 +4,8 @@ The page has one scene per group of built-in clips (side by side) and one per se
 earlier demo part wrote (``out/<part>/<group>_*.bvh`` share a world: ``out/physics/fight_attacker.bvh``
 and ``fight_defender.bvh`` play together). A part may write ``out/<part>/impacts.json`` beside them,
 ``{group or file stem: [{"time", "point", "impulse", "character"?}, ...]}``: those impacts are drawn
-as arrows (one of each equal-and-opposite pair). The video shows a row of built-in clips. Beside them, in
+as arrows (one of each equal-and-opposite pair). The video shows built-in clips in lanes across their
+direction of travel, each looping for the video's length. Beside them, in
 ``out/viewer/``: support-phase bars of the clips (PNG, SVG) and a glTF export of the walk.
 """
 
@@ -23,7 +24,7 @@ __all__ = ["clip_scenes", "demo", "part_scenes"]
 
 _SCENE_SIZE = 8  # clips per side-by-side scene
 _VIDEO_CLIPS = ("idle", "walk", "run", "jump", "punch", "kick")
-_VIDEO = {"width": 960, "height": 400, "end": 4.0, "azimuth": 95.0, "elevation": -12.0}  # demo.mp4
+_VIDEO = {"width": 960, "height": 400, "end": 4.0}  # demo.mp4: clips in lanes, filmed from the front
 _MOTION_EXT = (".bvh", ".npz")
 
 
@@ -113,7 +114,7 @@ def demo(out: Path) -> list[str]:
 
     names = [n for n in _VIDEO_CLIPS if n in library.names()] or library.names()[:6]
     motions = {n: library.load(n) for n in names}
-    res = render(out / "demo.mp4", motions, ("contacts",), layout="row",
+    res = render(out / "demo.mp4", motions, ("contacts",), layout="lanes", loop_clips=True,
                  config=RenderConfig(**_VIDEO))
     lines.append(f"demo.mp4: {', '.join(names)}; {res.frames} frames at {res.fps:g} fps, {res.width}x{res.height}, "
                  f"rendered in {res.seconds:.1f} s")

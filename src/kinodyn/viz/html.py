@@ -35,7 +35,9 @@ import numpy as np
 from kinodyn.errors import KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_write_bytes
 from kinodyn.plotting import style
-from kinodyn.viz.world import Actor, Contacts, Impact, Phases, Trajectory, World, build_world
+from kinodyn.version import __version__
+from kinodyn.viz.objects import Forces, Marker, Prop, Stages, check_prop
+from kinodyn.viz.world import RADIUS_RULES, Actor, Contacts, Impact, Phases, Trajectory, World, build_world
 
 __all__ = [
     "CAMERAS",
@@ -44,9 +46,13 @@ __all__ = [
     "Actor",
     "AssetMissingError",
     "Contacts",
+    "Forces",
     "Impact",
+    "Marker",
     "Phases",
+    "Prop",
     "Scene",
+    "Stages",
     "Trajectory",
     "ViewerPage",
     "bundle_available",
@@ -87,6 +93,7 @@ class Scene:
     names: Sequence[str] | None = None
     colors: Sequence[str] | None = None
     layout: str = "world"
+    loop_clips: bool = False
 
 
 @dataclass(frozen=True)
@@ -175,7 +182,10 @@ def scene_data(world: World, compress: bool = True, impulse_scale: float = 0.02)
         entry = {"name": c.name, "color": c.color, "fps": c.fps, "frames": c.num_frames, "start": c.start,
                  "parents": [int(p) for p in c.parents], "joints": c.joints, "radius": _r(c.radii),
                  "pos": encode_positions(c.positions, compress),
-                 "feet": {s: [int(i) for i in idx] for s, idx in c.feet.items()}, "contacts": None}
+                 "feet": {s: [int(i) for i in idx] for s, idx in c.feet.items()}, "contacts": None,
+                 "ghost": bool(c.ghost), "face": {k: int(v) for k, v in c.face.items()},
+                 "sides": [int(v) for v in c.sides] if c.sides is not None else None,
+                 "pointNames": list(c.point_names), "loop": bool(c.loop)}
         if c.contacts is not None:
             bits = c.contacts[:, 0].astype(np.uint8) | (c.contacts[:, 1].astype(np.uint8) << 1)
             entry["contacts"] = _encode_bytes(bits, compress)
@@ -192,7 +202,26 @@ def scene_data(world: World, compress: bool = True, impulse_scale: float = 0.02)
               "label": t.label} for t in world.trajectories]
     return {"name": world.name, "fps": world.fps, "duration": world.duration, "floor": world.floor,
             "characters": chars, "impacts": impacts, "phases": phases, "trajectories": trajs,
-            "impulseScale": impulse_scale}
+            "impulseScale": impulse_scale, "view": list(world.view) if world.view else None, "props": [_prop_data(p, i, compress) for i, p in enumerate(world.props)],
+            "forces": [_forces_data(f) for f in world.forces],
+            "markers": [{"t": float(m.time), "label": m.label, "color": style.color(m.color)} for m in world.markers]}
+
+
+def _prop_data(p: Prop, i: int, compress: bool) -> dict:
+    pos, q = check_prop(p, i)
+    out = {"shape": p.shape, "size": _r(p.size), "fps": float(p.fps), "start": float(p.start), "frames": len(pos),
+           "color": style.color(p.color), "label": p.label, "trail": bool(p.trail), "hide": bool(p.hide_outside),
+           "pos": encode_positions(pos[:, None, :], compress), "quat": None if q is None else _r(q, 4)}
+    if p.shape == "mesh":
+        out["vertices"] = _r(np.asarray(p.vertices, dtype=np.float64), 4)
+        out["faces"] = [int(v) for v in np.asarray(p.faces).ravel()]
+    return out
+
+
+def _forces_data(f: Forces) -> dict:
+    t, p, v = f.arrays()
+    return {"t": _r(t, 6), "points": _r(p, 4), "vectors": _r(v, 4), "kind": f.kind, "scale": float(f.scale),
+            "hold": float(f.hold), "char": f.character, "color": style.color(f.color), "label": f.label}
 
 
 # --------------------------------------------------------------------------- page
@@ -206,7 +235,7 @@ def to_html(motions=None, overlays=("contacts",), **kwargs) -> str:
 def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, title: str | None = None,
           layout: str = "world", scenes: Sequence[Scene] | None = None, body: str = "capsules",
           camera: str = "follow", autoplay: bool = True, loop: bool = True, compress: bool = True,
-          impulse_scale: float = 0.02) -> tuple[str, list[World]]:
+          impulse_scale: float = 0.02, curves: bool = False, loop_clips: bool = False) -> tuple[str, list[World]]:
     if body not in STYLES:
         raise ParameterError(f"body must be one of {', '.join(STYLES)}, got {body!r}")
     if camera not in CAMERAS:
@@ -216,7 +245,7 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
     if scenes is None:
         if motions is None:
             raise ParameterError("give motions or scenes")
-        scenes = [Scene(motions, overlays, "", names, colors, layout)]
+        scenes = [Scene(motions, overlays, "", names, colors, layout, loop_clips)]
     elif motions is not None:
         raise ParameterError("give motions or scenes, not both")
     if not scenes:
@@ -224,22 +253,25 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
     script = _asset(_BUNDLE)
     template = _asset(_TEMPLATE)
     worlds = [build_world(s.motions, s.overlays, names=s.names, colors=s.colors, layout=s.layout,
-                          name=s.name or f"scene {i + 1}") for i, s in enumerate(scenes)]
+                          name=s.name or f"scene {i + 1}", loop_clips=s.loop_clips) for i, s in enumerate(scenes)]
     show = set().union(*(w.show for w in worlds))
     title = title or (worlds[0].characters[0].name if len(worlds) == 1 and len(worlds[0].characters) == 1
                       else "kinodyn")
     data = {
         "version": FORMAT_VERSION, "title": title, "palette": list(style.PALETTE),
-        "phaseColors": dict(style.PHASE_COLORS), "contactColor": style.CONTACT_COLOR,
+        "phaseColors": dict(style.PHASE_COLORS), "stageColors": dict(style.STAGE_COLORS),
+        "radiusRules": [list(r) for r in RADIUS_RULES],
+        "contactColor": style.CONTACT_COLOR,
         "options": {"style": body, "camera": camera, "autoplay": bool(autoplay), "loop": bool(loop),
                     "contacts": "contacts" in show, "phases": "phases" in show,
-                    "trajectories": "trajectories" in show, "impacts": True, "labels": True},
+                    "trajectories": "trajectories" in show, "impacts": True, "labels": True,
+                    "props": True, "forces": True, "com": "com" in show, "support": "support" in show,
+                    "curves": bool(curves), "trails": False, "onion": False, "inPlace": False, "snap": False,
+                    "ortho": False},
         "scenes": [scene_data(w, compress, impulse_scale) for w in worlds],
     }
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     script = script.replace("</script", "<\\/script")
-    from kinodyn.version import __version__
-
     head, rest = template.split("{{DATA}}")
     rest_a, rest_b = rest.split("{{SCRIPT}}")
     head = head.replace("{{TITLE}}", escape(title)).replace("{{VERSION}}", __version__)
@@ -253,18 +285,24 @@ def write(path, motions=None, overlays=("contacts",), **kwargs) -> ViewerPage:
         path: the ``.html`` file.
         motions: a Motion, an :class:`Actor`, a sequence or a mapping ``name -> Motion`` (all shown in
             one world, in their own coordinates unless ``layout`` says otherwise).
-        overlays: overlay names (``"contacts"``, ``"phases"``, ``"trajectories"``) and objects
-            (:class:`Impact`, :class:`Contacts`, :class:`Phases`, :class:`Trajectory`); ``None`` for none.
+        overlays: overlay names (``"contacts"``, ``"phases"``, ``"trajectories"``, ``"com"``,
+            ``"support"``) and objects (:class:`Impact`, :class:`Contacts`, :class:`Phases`,
+            :class:`Trajectory`, :class:`Prop`, :class:`Forces`, :class:`Marker`, :class:`Stages`);
+            ``None`` for none.
 
     Keyword Args:
         names, colors: one label / colour per character.
         title: page title (default: the clip name or "kinodyn").
-        layout: ``"world"``, ``"row"`` or ``"grid"`` (side by side, for clip galleries).
+        layout: ``"world"``, ``"row"`` or ``"grid"`` (side by side, for clip galleries), ``"lanes"``
+            (side by side across the direction of travel, for comparisons).
         scenes: instead of ``motions``, a sequence of :class:`Scene` chosen from a selector in the page.
         body: ``"capsules"`` or ``"bones"``. camera: ``"follow"``, ``"orbit"`` or ``"free"``.
         autoplay, loop: playback at start.
         compress: zlib-compress the motion data (needs ``DecompressionStream``: every current browser).
         impulse_scale: impulse arrow length in metres per N s (clamped to 0.25 .. 1.2 m).
+        curves: open the curves panel (joint speeds, root and foot heights) at start.
+        loop_clips: clips shorter than the scene start again after their last frame (else they hold their
+            last pose); an :class:`Actor`'s ``loop`` overrides it.
 
     Returns:
         :class:`ViewerPage` with the path and the file size.

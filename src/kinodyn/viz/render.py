@@ -147,7 +147,7 @@ def _model_xml(world: World, cfg: RenderConfig) -> str:
 
 
 def _interp(ch, t: float) -> np.ndarray:
-    f = min(max((t - ch.start) * ch.fps, 0.0), ch.num_frames - 1)
+    f = ch.local_frame(t)  # held at both ends, or looping
     i0 = math.floor(f)
     i1 = min(i0 + 1, ch.num_frames - 1)
     a = f - i0
@@ -166,9 +166,10 @@ class Renderer:
         self._scene = gl.OffscreenScene(_model_xml(world, cfg), w, h, n_geoms)
         self._rgba = [style.rgba(c.color) for c in world.characters]
         self._target = None
+        self._fit = None
         self._trails = [self._trail(c) for c in world.characters]
         self._bars = self._phase_bars()
-        d = np.asarray(_VIEW_DIR, dtype=np.float64)
+        d = np.asarray(world.view if world.view is not None else _VIEW_DIR, dtype=np.float64)
         self._az = cfg.azimuth if cfg.azimuth is not None else math.degrees(math.atan2(-d[1], -d[0]))
         self._el = cfg.elevation if cfg.elevation is not None else -math.degrees(math.asin(d[2] / np.linalg.norm(d)))
         self._dist = cfg.distance
@@ -232,11 +233,11 @@ class Renderer:
                 self._target[2] = self.world.floor + 0.8
                 corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
                 self._fit = self._fit_distance(corners, self._target)
-        elif self._target is None:
-            self._target = centre
-            self._fit = self._fit_distance(np.concatenate(cur), centre)
-        else:
-            self._target = self._target + 0.12 * (centre - self._target)
+        else:  # follow: the distance grows at once when someone would leave the picture, shrinks slowly
+            tops = np.array([c[np.argmax(c[:, 2])] + (0.0, 0.0, 0.35) for c in cur])  # heads and their names
+            self._target = centre if self._target is None else self._target + 0.3 * (centre - self._target)
+            need = self._fit_distance(np.concatenate([*cur, tops]), self._target)
+            self._fit = need if self._fit is None or need > self._fit else self._fit + 0.05 * (need - self._fit)
         self._view = (self._target.copy(), self._dist or self._fit,
                       self._az + (cfg.orbit_deg_s * (t - cfg.start) if cfg.camera == "orbit" else 0.0), self._el)
         self._scene.begin(*self._view)
@@ -415,12 +416,14 @@ def write_video(path, images, fps: float, quality: int = 7) -> int:
 
 
 def render(path, motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
-           config: RenderConfig | None = None, progress=None, **config_kw) -> RenderResult:
+           loop_clips: bool = False, config: RenderConfig | None = None, progress=None,
+           **config_kw) -> RenderResult:
     """Render motions to a video (``.mp4``, ``.gif``) or a still (``.png`` at ``config.start``).
 
     Args:
         path: output file; the format follows the ending.
-        motions, overlays, names, colors, layout: as :func:`kinodyn.viz.html.write`.
+        motions, overlays, names, colors, layout, loop_clips: as :func:`kinodyn.viz.html.write` (clips
+            loop or hold their last pose for the video's length; ``layout="lanes"`` films from the front).
         config: a :class:`RenderConfig`; keyword arguments override its fields (``width=320``...).
         progress: optional ``progress(iterable, total=..., desc=...)`` wrapper (e.g. kinodyn.progress).
 
@@ -431,7 +434,7 @@ def render(path, motions, overlays=("contacts",), *, names=None, colors=None, la
 
     cfg = replace(config or RenderConfig(), **config_kw)
     world = motions if isinstance(motions, World) else build_world(motions, overlays, names=names, colors=colors,
-                                                                   layout=layout)
+                                                                   layout=layout, loop_clips=loop_clips)
     fps = cfg.fps or min(world.fps, 30.0)
     times = _times(world, cfg)
     if Path(path).suffix.lower() == ".png":

@@ -11,7 +11,11 @@ Inputs accepted wherever ``motions`` is asked for: one :class:`~kinodyn.motion.M
 
 Overlays: the strings ``"contacts"`` (foot contacts detected by :func:`kinodyn.contacts.detect`),
 ``"phases"`` (support-phase bars LS/RS/DS/flight derived from them), ``"trajectories"`` (root paths on
-the floor), or objects: :class:`Contacts`, :class:`Impact`, :class:`Phases`, :class:`Trajectory`.
+the floor), ``"com"`` (centre of mass and its ground projection), ``"support"`` (support polygon of the
+feet in contact), or objects: :class:`Contacts`, :class:`Impact`, :class:`Phases`, :class:`Trajectory`
+and, from :mod:`kinodyn.viz.objects`, :class:`~kinodyn.viz.objects.Prop`,
+:class:`~kinodyn.viz.objects.Forces`, :class:`~kinodyn.viz.objects.Marker`,
+:class:`~kinodyn.viz.objects.Stages`.
 """
 
 from __future__ import annotations
@@ -27,11 +31,23 @@ from kinodyn.kinematics import end_site_positions, forward_kinematics
 from kinodyn.motion import Motion
 from kinodyn.phases import contact_spans
 from kinodyn.plotting import style
-from kinodyn.roles import bone_role
+from kinodyn.roles import BONE_ROLES, bone_role, foot_point_indices
+from kinodyn.viz.objects import (
+    Forces,
+    Marker,
+    Prop,
+    Stages,
+    check_prop,
+    face_points,
+    lane_offsets,
+    lane_view,
+    point_sides,
+)
 
 __all__ = [
     "LAYOUTS",
     "OVERLAY_NAMES",
+    "RADIUS_RULES",
     "Actor",
     "Character",
     "Contacts",
@@ -45,8 +61,8 @@ __all__ = [
     "support_phases",
 ]
 
-OVERLAY_NAMES = ("contacts", "phases", "trajectories")
-LAYOUTS = ("world", "row", "grid")
+OVERLAY_NAMES = ("contacts", "phases", "trajectories", "com", "support")
+LAYOUTS = ("world", "row", "grid", "lanes")
 
 _MSG_MOTIONS = "motions must be a Motion, an Actor, a sequence of them or a mapping name -> Motion, got {}"
 
@@ -63,12 +79,17 @@ class Actor:
         name: label in the legend and above the head (default: the motion's name or ``character i``).
         color: ``"#rrggbb"`` (default: the palette in order).
         start: scene time (s) at which the clip's first frame plays; before it the first pose is held.
+        ghost: draw it translucent, as a reference the others are compared with.
+        loop: after its last frame the clip starts again (``True``) or holds its last pose (``False``);
+            ``None`` takes ``build_world``'s ``loop_clips``.
     """
 
     motion: Motion
     name: str | None = None
     color: str | None = None
     start: float = 0.0
+    ghost: bool = False
+    loop: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -154,6 +175,11 @@ class Character:
         joints: number of joints ``J`` (points ``J..P-1`` are end sites).
         feet: ``{"left": idx, "right": idx}`` point indices of each foot, or ``{}``.
         contacts: ``(F, 2)`` bool foot contacts, or ``None``.
+        ghost: drawn translucent (a reference).
+        sides: ``(P,)`` int8 side of each point (-1 left, 0 centre, 1 right), or ``None``.
+        face: ``{"head": i, "left": j, "right": k}`` points that say where the head faces, or ``{}``.
+        point_names: ``P`` names of the points (joints, then ``<joint>_end`` end sites).
+        loop: the clip plays again after its last frame (else its last pose is held).
     """
 
     name: str
@@ -166,6 +192,11 @@ class Character:
     joints: int
     feet: dict = field(default_factory=dict)
     contacts: np.ndarray | None = None
+    ghost: bool = False
+    sides: np.ndarray | None = None
+    face: dict = field(default_factory=dict)
+    point_names: tuple[str, ...] = ()
+    loop: bool = False
 
     @property
     def num_frames(self) -> int:
@@ -175,9 +206,17 @@ class Character:
     def end_time(self) -> float:
         return self.start + (self.num_frames - 1) / self.fps
 
+    def local_frame(self, t: float) -> float:
+        """Fractional frame shown at scene time ``t``: the first pose is held before ``start``; after the
+        last frame the clip starts again when it loops (a period of ``num_frames / fps``), else holds."""
+        f = max((t - self.start) * self.fps, 0.0)
+        if self.loop and self.num_frames > 1:
+            f = f % self.num_frames
+        return min(f, self.num_frames - 1.0)
+
     def frame_at(self, t: float) -> int:
-        """Index of the frame shown at scene time ``t`` (held at both ends)."""
-        return int(min(max(round((t - self.start) * self.fps), 0), self.num_frames - 1))
+        """Index of the frame shown at scene time ``t`` (see :meth:`local_frame`)."""
+        return int(min(round(self.local_frame(t)), self.num_frames - 1))
 
     def bones(self) -> np.ndarray:
         """``(B, 2)`` parent and child point of every bone."""
@@ -191,7 +230,9 @@ class World:
 
     Attributes:
         characters: the :class:`Character` list.
-        impacts, phases, trajectories: overlays.
+        impacts, phases, trajectories, props, forces, markers: overlays.
+        view: ``(3,)`` unit vector from the characters towards where the camera starts, or ``None`` for
+            the default three-quarter side view (``"lanes"`` start in front, to see every lane).
         show: names of overlays switched on at start (``contacts``, ``phases``, ``trajectories``...).
         fps: frame rate of the scene clock (the highest character fps).
         duration: seconds from 0 to the last frame of the longest character.
@@ -207,6 +248,10 @@ class World:
     duration: float = 0.0
     name: str = ""
     floor: float = 0.0
+    props: tuple[Prop, ...] = ()
+    forces: tuple[Forces, ...] = ()
+    markers: tuple[Marker, ...] = ()
+    view: tuple[float, float, float] | None = None
 
     @property
     def num_frames(self) -> int:
@@ -226,6 +271,9 @@ class World:
 _BONE_RADII = {"head": 0.095, "hand": 0.026, "neck": 0.05, "neck_base": 0.075, "upper_arm": 0.045,
                "shoulder": 0.05, "clavicle": 0.05, "forearm": 0.037, "trunk": 0.1, "pelvis": 0.075,
                "toe": 0.03, "foot": 0.042, "shin": 0.05, "thigh": 0.065}
+#: (regex on the lower-cased name of a bone's child point, capsule radius) in the order of
+#: :data:`kinodyn.roles.BONE_ROLES`, first match wins: the page applies the same rules to a dropped BVH.
+RADIUS_RULES = tuple((pat, _BONE_RADII[role]) for role, pat in BONE_ROLES)
 
 
 def bone_radii(names: Sequence[str], parents: np.ndarray, height: float) -> np.ndarray:
@@ -315,13 +363,12 @@ def _actors(motions, names, colors) -> list[Actor]:
     out = []
     for i, a in enumerate(acts):
         nm = (names[i] if names is not None else None) or a.name or a.motion.name or f"character {i + 1}"
-        out.append(Actor(a.motion, str(nm), cols[i], float(a.start)))
+        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost), a.loop))
     return out
 
 
 def _feet_points(motion: Motion) -> dict[str, np.ndarray]:
     from kinodyn.contacts import find_feet
-    from kinodyn.roles import foot_point_indices
 
     try:
         feet = find_feet(motion.skeleton)
@@ -366,18 +413,21 @@ def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> l
     return out
 
 
-def _sort_overlays(overlays):
-    """Overlay names and objects sorted by kind: ``(wanted, auto, impacts, phases, trajectories, contacts)``."""
+def _classify(overlays) -> tuple[set, set, dict]:
+    """Sort overlays by kind: (overlays switched on, overlays computed per character, objects by kind)."""
     overlays = () if overlays is None else ([overlays] if isinstance(overlays, (str, Impact, Contacts, Phases,
-                                                                                 Trajectory)) else list(overlays))
+                                                                                 Trajectory, Prop, Forces,
+                                                                                 Marker, Stages))
+                                            else list(overlays))
     wanted = set()  # overlays switched on in the viewer
     auto = set()  # overlays computed here for every character
-    impacts, phases, trajs, contacts = [], [], [], {}
+    got = {"impacts": [], "phases": [], "trajectories": [], "contacts": {}, "props": [], "forces": [],
+           "markers": [], "stages": []}
     for ov in overlays:
         if isinstance(ov, str):
             if ov not in OVERLAY_NAMES:
                 raise ParameterError(f"unknown overlay {ov!r}; overlays: {', '.join(OVERLAY_NAMES)} "
-                                     "or Impact/Contacts/Phases/Trajectory objects")
+                                     "or Impact/Contacts/Phases/Trajectory/Prop/Forces/Marker/Stages objects")
             wanted.add(ov)
             auto.add(ov)
         elif isinstance(ov, Impact):
@@ -386,26 +436,44 @@ def _sort_overlays(overlays):
             if p.shape != (3,) or j.shape != (3,) or not (np.all(np.isfinite(p)) and np.all(np.isfinite(j))):
                 raise ParameterError(f"Impact point and impulse must be finite (3,) vectors, got {p.shape} "
                                      f"and {j.shape}")
-            impacts.append(ov)
+            got["impacts"].append(ov)
         elif isinstance(ov, Contacts):
-            contacts[ov.character] = ov.labels
+            got["contacts"][ov.character] = ov.labels
             wanted.add("contacts")
-        elif isinstance(ov, Phases):
-            phases.append(ov)
+        elif isinstance(ov, (Phases, Stages)):
+            if isinstance(ov, Stages):
+                spans, cols = ov.colored_spans()
+                got["stages"].append(Phases(spans, ov.label, ov.character, cols))
+            else:
+                got["phases"].append(ov)
             wanted.add("phases")
         elif isinstance(ov, Trajectory):
             pts = np.asarray(ov.points, dtype=np.float64)
             if pts.ndim != 2 or pts.shape[1] != 3:
                 raise ParameterError(f"Trajectory points must have shape (N, 3), got {pts.shape}")
-            trajs.append(ov)
+            got["trajectories"].append(ov)
             wanted.add("trajectories")
+        elif isinstance(ov, Prop):
+            check_prop(ov, len(got["props"]))
+            got["props"].append(ov)
+            wanted.add("props")
+        elif isinstance(ov, Forces):
+            ov.arrays()
+            got["forces"].append(ov)
+            wanted.add("forces")
+        elif isinstance(ov, Marker):
+            if not np.isfinite(ov.time):
+                raise ParameterError(f"Marker time must be finite, got {ov.time}")
+            got["markers"].append(ov)
         else:
             raise ParameterError(f"overlays must be names or overlay objects, got {type(ov).__name__}")
-    return wanted, auto, impacts, phases, trajs, contacts
+    if got["impacts"]:
+        wanted.add("impacts")
+    return wanted, auto, got
 
 
 def build_world(motions, overlays=("contacts",), *, names=None, colors=None, layout: str = "world",
-                name: str = "") -> World:
+                name: str = "", loop_clips: bool = False) -> World:
     """Prepare characters and overlays for drawing.
 
     Args:
@@ -414,8 +482,12 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         names: one label per character (overrides motion and actor names).
         colors: one colour per character (``None`` entries take the palette).
         layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
-            root position moved to its slot) or ``"grid"`` (rows and columns); for clip galleries.
+            root position moved to its slot), ``"grid"`` (rows and columns), for clip galleries; or
+            ``"lanes"`` (side by side across the direction of travel, for comparing movers:
+            :func:`kinodyn.viz.objects.lane_offsets`).
         name: scene name.
+        loop_clips: clips shorter than the scene start again after their last frame (else they hold
+            their last pose); an :class:`Actor`'s ``loop`` overrides it.
 
     Raises:
         ParameterError: unknown overlay or layout, wrong shapes, bad character indices.
@@ -423,11 +495,11 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
     if layout not in LAYOUTS:
         raise ParameterError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
     actors = _actors(motions, names, colors)
-    wanted, auto, impacts, phases, trajs, contacts = _sort_overlays(overlays)
-    if impacts:
-        wanted.add("impacts")
+    wanted, auto, got = _classify(overlays)
+    impacts, phases, contacts = got["impacts"], got["phases"], got["contacts"]
     n = len(actors)
-    for idx in list(contacts) + [o.character for o in impacts + phases if o.character is not None]:
+    forces = got["forces"]
+    for idx in list(contacts) + [o.character for o in impacts + phases + forces if o.character is not None]:
         if not (isinstance(idx, (int, np.integer)) and 0 <= idx < n):
             raise ParameterError(f"overlay character index must be in 0..{n - 1}, got {idx!r}")
 
@@ -436,13 +508,13 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         pos, parents, pnames = body_points(a.motion)
         pos_list.append(pos)
         radii = bone_radii(pnames, parents, a.motion.skeleton.height())
-        prepared.append((pos, parents, radii))
-    offsets = _layout_offsets(pos_list, layout)
+        prepared.append((pos, parents, radii, pnames))
+    offsets = lane_offsets(pos_list) if layout == "lanes" else _layout_offsets(pos_list, layout)
     chars = []
-    for i, (a, (pos, parents, radii), off) in enumerate(zip(actors, prepared, offsets)):
+    for i, (a, (pos, parents, radii, pnames), off) in enumerate(zip(actors, prepared, offsets)):
         m = a.motion
         lab = contacts.get(i)
-        if lab is None and ("contacts" in auto or "phases" in auto):
+        if lab is None and ("contacts" in auto or "phases" in auto or "support" in auto):
             from kinodyn import contacts as _contacts
 
             try:
@@ -454,11 +526,18 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
             if lab.shape != (m.num_frames, 2):
                 raise ParameterError(f"contacts of character {i} must have shape ({m.num_frames}, 2), got "
                                      f"{lab.shape}")
+        sides = point_sides(pnames)
         chars.append(Character(a.name, a.color, m.fps, a.start, pos + off, parents, radii, m.num_joints,
-                               _feet_points(m), lab))
+                               _feet_points(m), lab, a.ghost, sides, face_points(pnames, sides, pos), tuple(pnames),
+                               bool(loop_clips if a.loop is None else a.loop)))
         if "phases" in auto and lab is not None and not any(p.character == i for p in phases):
             phases.append(Phases(support_phases(lab, m.fps, a.start), f"{a.name} support", i))
     fps = max(c.fps for c in chars)
     duration = max(c.end_time for c in chars)
-    return World(tuple(chars), tuple(sorted(impacts, key=lambda x: x.time)), tuple(phases), tuple(trajs),
-                 frozenset(wanted), fps, max(duration, 0.0), name)
+    for p in got["props"]:
+        duration = max(duration, p.start + (len(np.atleast_2d(p.positions)) - 1) / p.fps)
+    view = lane_view(pos_list) if layout == "lanes" else None
+    return World(tuple(chars), tuple(sorted(impacts, key=lambda x: x.time)), tuple(phases + got["stages"]),
+                 tuple(got["trajectories"]), frozenset(wanted), fps, max(duration, 0.0), name,
+                 props=tuple(got["props"]), forces=tuple(forces),
+                 markers=tuple(sorted(got["markers"], key=lambda m: m.time)), view=view)
