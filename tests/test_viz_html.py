@@ -108,7 +108,7 @@ def test_bone_radii_make_a_head_thicker_than_a_hand(walk):
 def test_support_phases_labels_and_spans():
     lab = np.array([[1, 1], [1, 0], [1, 0], [0, 0], [0, 1], [1, 1]], dtype=bool)
     spans = world.support_phases(lab, fps=10.0, start=1.0)
-    assert spans == [(1.0, 1.1, "DS"), (1.1, 1.3, "LS"), (1.3, 1.4, "flight"), (1.4, 1.5, "RS"), (1.5, 1.6, "DS")]
+    assert spans == [(1.0, 1.1, "DS"), (1.1, 1.3, "LS"), (1.3, 1.4, "FLIGHT"), (1.4, 1.5, "RS"), (1.5, 1.6, "DS")]
     with pytest.raises(ParameterError, match=r"shape \(F, 2\)"):
         world.support_phases(np.zeros(4, dtype=bool), 10.0)
 

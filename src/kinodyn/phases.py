@@ -75,8 +75,8 @@ PHASES = (RS, LS, DS, FLIGHT, ERR)
 SUPPORT_PHASES = (RS, LS, DS, FLIGHT)
 _NAMES = {int(p): p.name for p in Phase}
 #: Colour of each phase code in every picture (``"#rrggbb"``).
-PHASE_COLORS = {int(RS): "#d62728", int(LS): "#1f77b4", int(DS): "#7f7f7f", int(FLIGHT): "#f2c14e",
-                int(ERR): "#000000"}
+PHASE_COLORS = {int(RS): "#f28e2b", int(LS): "#59a14f", int(DS): "#4e79a7", int(FLIGHT): "#c9ced6",
+                int(ERR): "#e15759"}
 
 
 def phase_name(p) -> str:

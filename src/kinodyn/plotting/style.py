@@ -2,7 +2,8 @@
 
 Colours are hex strings (``"#4e79a7"``). Characters take :data:`PALETTE` colours in order; support phases
 use :data:`PHASE_COLORS`, keyed by the labels of Multon et al. (support-phase synchronization, section 4:
-``LS`` left support, ``RS`` right support, ``DS`` double support, ``flight`` no foot on the ground).
+``LS`` left support, ``RS`` right support, ``DS`` double support, ``FLIGHT`` no foot on the ground,
+``ERR`` a conflict); they are :data:`kinodyn.phases.PHASE_COLORS` by name, so every picture agrees.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import re
 import numpy as np
 
 from kinodyn.errors import ParameterError
+from kinodyn.phases import PHASE_COLORS as _PHASE_COLORS_BY_CODE
+from kinodyn.phases import phase_name
 
 __all__ = [
     "CONTACT_COLOR",
@@ -31,10 +34,10 @@ __all__ = [
 PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#ff9da7",
            "#9c755f", "#bab0ac")
 
-#: Support-phase colours (labels of the support-phase sequence).
-PHASE_COLORS = {"LS": "#59a14f", "RS": "#f28e2b", "DS": "#4e79a7", "flight": "#c9ced6", "Err": "#e15759"}
 #: Label of each support-phase code (:class:`kinodyn.phases.Phase`) in the bars coloured by :data:`PHASE_COLORS`.
-PHASE_LABELS = {0b000: "DS", 0b001: "RS", 0b010: "LS", 0b011: "Err", 0b111: "flight"}
+PHASE_LABELS = {code: phase_name(code) for code in _PHASE_COLORS_BY_CODE}
+#: Support-phase colours by label (:data:`kinodyn.phases.PHASE_COLORS`, keyed by :data:`PHASE_LABELS`).
+PHASE_COLORS = {phase_name(code): col for code, col in _PHASE_COLORS_BY_CODE.items()}
 
 #: Stage colours of a character's timeline (what drives it: the dynamic response fills these).
 STAGE_COLORS = {"motion data": "#76b7b2", "simulation": "#b07aa1", "transition": "#edc948", "clip": "#9c755f"}

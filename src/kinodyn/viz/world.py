@@ -10,7 +10,7 @@ Inputs accepted wherever ``motions`` is asked for: one :class:`~kinodyn.motion.M
 ``name -> Motion | Actor``.
 
 Overlays: the strings ``"contacts"`` (foot contacts detected by :func:`kinodyn.contacts.detect`),
-``"phases"`` (support-phase bars LS/RS/DS/flight derived from them), ``"trajectories"`` (root paths on
+``"phases"`` (support-phase bars LS/RS/DS/FLIGHT derived from them), ``"trajectories"`` (root paths on
 the floor), ``"com"`` (centre of mass and its ground projection), ``"support"`` (support polygon of the
 feet in contact), or objects: :class:`Contacts`, :class:`Impact`, :class:`Phases`, :class:`Trajectory`
 and, from :mod:`kinodyn.viz.objects`, :class:`~kinodyn.viz.objects.Prop`,
@@ -324,7 +324,7 @@ def support_phases(labels: np.ndarray, fps: float, start: float = 0.0) -> list[t
 
     Returns:
         ``(t0, t1, label)`` spans covering ``[start, start + F / fps]``, labels ``LS`` (left foot only),
-        ``RS`` (right only), ``DS`` (both), ``flight`` (none); consecutive equal labels merged.
+        ``RS`` (right only), ``DS`` (both), ``FLIGHT`` (none); consecutive equal labels merged.
     """
     return contact_spans(labels, fps, start, style.PHASE_LABELS)
 
