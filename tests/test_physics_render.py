@@ -128,8 +128,9 @@ def _imports_mujoco(path: Path) -> bool:
 
 
 def test_only_the_physics_package_imports_mujoco():
-    """DESIGN.md: only physics (and packages built on it) imports mujoco; viz films through
-    kinodyn.physics.render. The physics benchmark's Python servo baseline is the one exception."""
+    """DESIGN.md: only physics and the capabilities built on it import mujoco; viz films through
+    kinodyn.physics.render."""
+    built_on_physics = {"physics", "response", "contact", "crowd", "scene"}
     outside = sorted(str(p.relative_to(SRC)) for p in SRC.rglob("*.py")
-                     if _imports_mujoco(p) and p.relative_to(SRC).parts[0] != "physics")
-    assert outside == ["bench/physics.py"]
+                     if _imports_mujoco(p) and p.relative_to(SRC).parts[0] not in built_on_physics)
+    assert outside == []
