@@ -377,6 +377,8 @@ class FootLock:
         release: ``(N, 2, 2)`` IK offset fading out after a foot lifts off.
         drop: ``(N,)`` how far the pelvis is lowered to reach the feet.
         release_z: ``(N, 2)`` height correction fading out after a lift-off.
+        offset: ``(N, 2)`` at the last frame, the distance (m) of each held foot's lowest point from where
+            the blended pose put it before the lock moved the root, the IK included (NaN: not held).
         legs, reach: the legs (or ``None``) and each leg's hip-to-ankle rest length.
     """
 
@@ -391,6 +393,7 @@ class FootLock:
         self.release = np.zeros((N, 2, 2))
         self.drop = np.zeros(N)
         self.release_z = np.zeros((N, 2))
+        self.offset = np.full((N, 2), np.nan)
         self.legs = legs(skeleton)
         self.reach = None
         if self.legs is not None:  # hip-to-ankle length of each leg (the rest bone lengths)
@@ -464,12 +467,19 @@ class FootLock:
         _support_kernel(np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(wn, dtype=np.float64),
                         np.ascontiguousarray(phase, dtype=np.int8), left, support, planted, vote)
         self.support = support
+        self.offset = np.full((N, 2), np.nan)
         if self.idle(planted):
             return root, q
         root = np.array(root, dtype=np.float64)
+        before = root.copy()
         q = np.ascontiguousarray(q, dtype=np.float64)
         gr, gp, target, xy, lift, need = self._hold(root, q, planted, vote, left, rest, dt)
         self.planted = planted
+        # how far each held foot is from where this frame's blend put it (before the root followed)
+        blend_xy = xy - (root[:, None, :2] - before[:, None, :2])
+        sink = lift - self.drop[:, None]
+        off = np.sqrt(((target - blend_xy) ** 2).sum(axis=-1) + sink ** 2)
+        self.offset = np.where(planted, off, np.nan)
         for s, leg in enumerate(self.legs):
             r = np.nonzero(need[:, s])[0]
             if len(r):

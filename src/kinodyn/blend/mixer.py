@@ -310,7 +310,8 @@ class Mixer:
             root, q = self.footlock.constrain(root, q, w, wn, phase, left, rest, dt, g[:, 2])
             self.ground = np.concatenate([root[:, :2], g[:, 2:]], axis=1)
         if self.recordings is not None and move:
-            self._record(t, h, w, wn, r)
+            held = self.config.enforce and self.footlock.legs is not None
+            self._record(t, h, w, wn, r, self.footlock.offset if held else None)
         return Pose(root, q)
 
     def _blend(self, i0, a, w, wn):
@@ -327,11 +328,12 @@ class Mixer:
         z = zdb[i0] * (1.0 - a) + zdb[i0 + 1] * a
         return q, (w * z).sum(axis=1) + wn * nz
 
-    def _record(self, t, h, w, wn, r):
+    def _record(self, t, h, w, wn, r, offset=None):
         for n, rec in enumerate(self.recordings):
             fi = len(rec.times)
             rec.times.append(t)
             rec.neutral.append(float(wn[n]))
+            rec.lock_offset.append((np.nan, np.nan) if offset is None else tuple(offset[n]))
             for s, key in enumerate(self.slots.keys[n]):
                 if key is None:
                     continue
