@@ -85,7 +85,59 @@ def test_builtin_every_action_starts_and_waits_at_most_a_few_elements(builtin):
         assert started is not None and 0.0 <= started - asked < 0.6, (key, asked, started)
 
 
+def test_synchronization_lets_the_lock_hold_feet_without_distorting_the_pose(builtin):
+    """With the same foot lock, synchronization cuts sliding on the source clips' contacts at least 3x
+    and the lock's displacement of held feet (p95) about 3x: the actions agree on the support, so the
+    blended pose already puts the planted feet where they are held."""
+    figs, _ = builtin
+    s, l = figs["arms"]["sync_lock"], figs["arms"]["lock"]
+    assert s["planted_frames"] > 800
+    assert figs["sliding_ratio"] >= 3.0, figs["sliding_ratio"]
+    assert s["sliding_cm_s"] < 1.5
+    assert figs["lock_p95_ratio"] >= 2.5, figs["lock_p95_ratio"]
+    assert s["lock_p95_cm"] < 6.0 and l["lock_p95_cm"] > 12.0
+    assert s["lowest_foot_cm"] > -1.0
+
+
+def test_builtin_time_warp_stays_within_a_fifth_to_two_and_a_half_times_the_clips_speed(builtin):
+    """Equation 6 alone warped the run to 0.08x of its speed; the bounded step durations keep every
+    visible action (5 % of the weight or more) within 0.23x-2.47x here (0.5x-2x where the spans of
+    one step allow it)."""
+    figs, _ = builtin
+    s = figs["arms"]["sync_lock"]
+    assert s["warp_rate_min"] >= 0.2 and s["warp_rate_max"] <= 2.5, (s["warp_rate_min"], s["warp_rate_max"])
+
+
 _CMU = realclips.default_folder()
+
+
+@pytest.mark.mocap
+@pytest.mark.slow
+def test_cmu_walk_run_walk_synchronized_holds_feet_within_3_cm():
+    """Real CMU walk and run cycles: with the lock, synchronization keeps the held feet within 3 cm (p95)
+    of the blended pose, over 2x closer than the lock without it, and sliding under 1.5 cm/s."""
+    script = realclips.walk_run_walk(_CMU)
+    if script is None:
+        pytest.skip("CMU walk and run clips not in the mocap folder")
+    figs = evaluate(script)
+    print(table(figs, script.name))
+    s = figs["arms"]["sync_lock"]
+    assert s["err_frames"] == 0 and figs["arms"]["plain"]["err_frames"] > 0
+    assert s["lock_p95_cm"] < 3.0 and figs["lock_p95_ratio"] >= 2.0
+    assert s["sliding_cm_s"] < 1.5
+
+
+@pytest.mark.mocap
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["cmu_fig12", "cmu_walk_stumble", "cmu_walk_fall_getup"])
+def test_cmu_scripts_synchronized_never_mix_a_right_and_a_left_support(name):
+    scripts = realclips.scripts(_CMU)
+    if name not in scripts:
+        pytest.skip(f"clips of {name} not in the mocap folder")
+    figs = evaluate(scripts[name])
+    print(table(figs, name))
+    assert figs["arms"]["sync_lock"]["err_frames"] == 0 and figs["arms"]["sync"]["err_frames"] == 0
+    assert figs["arms"]["sync_lock"]["sliding_cm_s"] < figs["arms"]["sync"]["sliding_cm_s"]
 
 
 @pytest.mark.slow

@@ -446,8 +446,12 @@ class FootLock:
         return (not np.any(planted) and not np.any(self.planted) and not np.any(self.release)
                 and not np.any(self.drop) and not np.any(self.release_z))
 
-    def constrain(self, root, q, w, wn, phase, left, rest, dt: float, heading):
+    def constrain(self, root, q, w, wn, phase, left, rest, dt: float, heading, pin: bool = True):
         """Enforce the support on blended poses; returns new ``root (N, 3)`` and ``q (N, J, 4)``.
+
+        With ``pin=False`` only the root moves: it follows the planted feet at once (no halflife), so a
+        foot that carries the body stays where it is without bending a leg (the blend's root motion,
+        :attr:`~kinodyn.blend.mixer.BlendConfig.root_motion`); the legs keep the blended pose.
 
         Args:
             root, q: ``(N, 3)``, ``(N, J, 4)`` the blended poses (world root, local rotations).
@@ -473,8 +477,10 @@ class FootLock:
         root = np.array(root, dtype=np.float64)
         before = root.copy()
         q = np.ascontiguousarray(q, dtype=np.float64)
-        gr, gp, target, xy, lift, need = self._hold(root, q, planted, vote, left, rest, dt)
+        gr, gp, target, xy, lift, need = self._hold(root, q, planted, vote, left, rest, dt, pin)
         self.planted = planted
+        if not pin:
+            return root, q
         # how far each held foot is from where this frame's blend put it (before the root followed)
         blend_xy = xy - (root[:, None, :2] - before[:, None, :2])
         sink = lift - self.drop[:, None]
@@ -486,12 +492,13 @@ class FootLock:
                 q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=lift[r, s])
         return root, q
 
-    def _hold(self, root, q, planted, vote, left, rest, dt: float):
+    def _hold(self, root, q, planted, vote, left, rest, dt: float, pin: bool = True):
         """Run :func:`_hold_kernel`; returns the legs' world rotations and positions ``gr``, ``gp`` and the
         kernel's ``target``, ``xy``, ``lift``, ``need``."""
         cfg = self.config
         hl = cfg.root_halflife
         alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
+        drop = float(cfg.max_pelvis_drop) if pin else 0.0
         decay = 0.5 ** (dt / cfg.release_halflife) if cfg.release_halflife > 0 else 0.0
         N, J = q.shape[:2]
         gr = np.zeros((N, J, 4))  # only the legs' chains are computed
@@ -504,6 +511,5 @@ class FootLock:
         _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left,
                      np.ascontiguousarray(rest, dtype=np.float64), self.planted, self.foot_pt, self.foot_xy,
                      self.release, self.release_z, self.drop, joints, nj, par, off, ne, hips, ankles, reach, alpha,
-                     decay, float(cfg.max_foot_offset), float(cfg.max_pelvis_drop),
-                     float(cfg.max_pelvis_drop) * dt / DROP_TIME, target, xy, lift, need)
+                     decay, float(cfg.max_foot_offset), drop, drop * dt / DROP_TIME, target, xy, lift, need)
         return gr, gp, target, xy, lift, need
