@@ -100,8 +100,11 @@ def test_planner_times_steps_with_equation_6_and_the_hold_split():
         # each action spends its element's duration (divided among held steps) ...
         if ta.elems.count(ta.elem(s)) == 1:
             assert sa == pytest.approx(a.durations[ta.elem(s) % 4])
-        # ... and the step lasts the weighted mean (equation 6)
-        assert planner.T[s + 1] - planner.T[s] == pytest.approx((1 * sa + 3 * sb) / 4)
+        # ... and the step lasts the weighted mean (equation 6), clipped so both play at 0.5x to 2x
+        d = planner.T[s + 1] - planner.T[s]
+        assert d == pytest.approx(tw.bounded_duration((1 * sa + 3 * sb) / 4, [sa, sb], 0.5, 2.0))
+        if max(sa, sb) <= 4.0 * min(sa, sb):   # a duration exists that plays both within the bounds
+            assert 0.5 - 1e-9 <= sa / d <= 2.0 + 1e-9 and 0.5 - 1e-9 <= sb / d <= 2.0 + 1e-9
     # the segment being played is frozen, C1 with the previous one
     seg = planner.segment("a")
     assert seg.t0 == pytest.approx(planner.T[k]) and seg.t1 == pytest.approx(planner.T[k + 1])
@@ -132,3 +135,16 @@ def test_played_warp_is_continuous_in_value_and_speed():
             jumps += abs(d0 - s1.coef[1]) > 1e-6
     assert total > 50
     assert jumps <= 0.05 * total
+
+
+def test_step_durations_keep_every_action_within_half_to_twice_its_speed():
+    """Equation 6 alone plays a 0.55 s stance and a 0.13 s stance (a walk and a run) at 1.6x and 0.36x;
+    the bounded duration keeps both within 0.5x-2x where one exists, and misses both bounds by the same
+    factor where none does."""
+    d = (0.55 + 0.13) / 2
+    assert 0.13 / d < 0.5                                    # the unbounded mean
+    b = tw.bounded_duration(d, [0.55, 0.30], 0.5, 2.0)
+    assert 0.5 <= 0.55 / b <= 2.0 and 0.5 <= 0.30 / b <= 2.0
+    g = tw.bounded_duration(d, [0.55, 0.10], 0.5, 2.0)       # 5.5x apart: no duration fits both
+    assert (0.55 / g) / 2.0 == pytest.approx(0.5 / (0.10 / g))
+    assert tw.bounded_duration(0.3, [0.3, 0.4], 0.5, 2.0) == 0.3   # within the bounds: unchanged

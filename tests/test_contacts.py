@@ -411,3 +411,55 @@ def test_walk_has_double_support_at_step_changes(walk):
     assert all(o >= 0 for o in overlaps), f"a walk has no flight phase: {overlaps} ({steps})"
     assert sum(o > 0 for o in overlaps) >= len(overlaps) - 1, f"double support between steps: {overlaps}"
     assert abs(c.floor_slope[0]) > 0.005, "the capture floor of this clip is tilted along the walk"
+
+
+# ---------------------------------------------------------------------------------------- every real clip
+def _loadable_clips():
+    """Every motion file of the shared mocap folder that kinodyn reads (BVH, ASF/AMC)."""
+    return mocap_files("**/*.bvh") + mocap_files("**/*.amc")
+
+
+def _really_down(m, pts, window_s: float = 2.0, near: float = 0.08, slow: float = 0.5):
+    """``{side: (F,) bool}`` frames where a foot is down by a rule that needs no floor estimate: some point
+    of it moves slower than ``slow`` m/s (over 1/30 s), and its lowest point is within ``near`` metres of
+    the lowest point either foot reaches within ``window_s`` seconds."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    n = m.num_frames
+    k = max(1, int(round(m.fps / 60)))
+    i = np.arange(n)
+    a, b = np.clip(i - k, 0, n - 1), np.clip(i + k, 0, n - 1)
+    low = np.minimum(*[pts[s][..., 2].min(axis=1) for s in contacts.SIDES])
+    half = int(round(window_s * m.fps))
+    pad = np.pad(low, half, mode="edge")
+    ground = sliding_window_view(pad, 2 * half + 1).min(axis=1)
+    out = {}
+    for s in contacts.SIDES:
+        p = pts[s]
+        speed = np.linalg.norm(p[b] - p[a], axis=-1) * m.fps / np.maximum(b - a, 1)[:, None]
+        out[s] = (speed.min(axis=1) < slow) & (p[..., 2].min(axis=1) < ground + near)
+    return out
+
+
+@pytest.mark.mocap
+@pytest.mark.parametrize("path", _loadable_clips(), ids=lambda p: p.name)
+def test_no_foot_is_labelled_in_flight_while_it_stands(path):
+    """Falls, stumbles, get-ups, raised and tilted capture floors: on every real clip, no foot is labelled
+    in flight for more than 0.15 s while it is still and on the lowest ground nearby (its real flight is
+    never that long a run of such frames)."""
+    import kinodyn
+
+    m = kinodyn.load(path)
+    if path.suffix == ".bvh" and path.name.startswith("cmu_"):
+        m = m[1:]  # the converter's T-pose
+    try:
+        c = contacts.detect(m)
+    except UnknownNameError:
+        pytest.skip(f"{path.name}: no feet found by name")
+    down = _really_down(m, contacts.foot_points(m))
+    for s in contacts.SIDES:
+        missed = down[s] & ~c.labels[s]
+        runs = contacts.intervals(missed)
+        longest = max(((b - a) / m.fps for a, b in runs), default=0.0)
+        assert longest <= 0.15, (f"{path.name} {s}: labelled in flight for {longest:.2f} s while down "
+                                 f"(floor {c.floor:.3f} m, {c.labels[s].mean():.0%} of frames in contact)")

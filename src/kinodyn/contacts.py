@@ -26,7 +26,7 @@ from kinodyn.motion import Motion
 from kinodyn.skeleton import Skeleton
 
 __all__ = ["ContactConfig", "FootContacts", "find_feet", "foot_points", "detect", "intervals", "sliding",
-           "SlidingReport"]
+           "SlidingReport", "support_level"]
 
 SIDES = roles.SIDES
 
@@ -44,12 +44,21 @@ class ContactConfig:
             percentile of the lowest points. Clips that cover little ground get a level floor.
         min_frames: contact or flight runs shorter than this many frames are merged into their
             neighbours (removes single-frame flicker).
+        relative_speed: a foot point moving slower than this fraction of the root's horizontal speed
+            counts as slow too (a fast or stumbling walk rolls its planted foot over at several tenths
+            of a metre per second, while its swinging foot moves at about twice the body's speed).
+
+    With an estimated floor, the height test is made against the *support level* each foot stands on
+    near each instant (:func:`support_level`): a clip that stands on a raised platform, steps down from
+    it, falls onto a mat or gets up from the floor keeps its contacts, where a single floor height for
+    the whole clip would put the feet either through it or out of reach.
     """
 
     height: float = 0.05
     speed: float = 0.35
     floor: float | None = None
     min_frames: int = 2
+    relative_speed: float = 0.0
 
     def __post_init__(self):
         if not (np.isfinite(self.height) and self.height > 0):
@@ -60,6 +69,8 @@ class ContactConfig:
             raise ParameterError(f"floor must be finite or None, got {self.floor}")
         if self.min_frames < 1:
             raise ParameterError(f"min_frames must be at least 1, got {self.min_frames}")
+        if not (np.isfinite(self.relative_speed) and self.relative_speed >= 0):
+            raise ParameterError(f"relative_speed must be a non-negative fraction, got {self.relative_speed}")
 
 
 def find_feet(skeleton: Skeleton, feet: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
@@ -166,19 +177,105 @@ def detect(motion: Motion, config: ContactConfig = ContactConfig(),
         floor, slope = _estimate_floor(pts, vel, config)
     else:
         floor, slope = float(config.floor), np.zeros(2)
+    root = np.asarray(motion.root_pos, dtype=np.float64)
+    limit = np.maximum(config.speed, config.relative_speed * _window_speed(root[:, None, :2], motion.fps)[:, 0])
+    heights = {side: pts[side][..., 2] - (floor + pts[side][..., :2] @ slope) for side in SIDES}
+    speeds = {side: _window_speed(pts[side], motion.fps) for side in SIDES}
+    slow = {side: speeds[side] < limit[:, None] for side in SIDES}
+    if config.floor is None:
+        level = support_level({s: heights[s].min(axis=1) for s in SIDES}, {s: slow[s].any(axis=1) for s in SIDES},
+                              motion.fps)
+    else:
+        level = {side: np.zeros(len(root)) for side in SIDES}
     labels, lowest, lowest_vel = {}, {}, {}
     for side in SIDES:
         p = pts[side]  # (F, P, 3)
-        v = vel[side]
-        speed = np.linalg.norm(v, axis=-1)
-        height = p[..., 2] - (floor + p[..., :2] @ slope)
-        touching = (height < config.height) & (speed < config.speed)
-        labels[side] = _clean(touching.any(axis=1), config.min_frames)
+        height = heights[side]
+        # the lowest point is near the ground while some point of the foot is slow: a foot rolling over
+        # its toes or pivoting on its heel is planted even though its low points sweep
+        # (a foot very close to the ground that turns on it, for a while, may do so at up to 1.5 times
+        # the speed threshold; a landing foot passes that band in a frame or two)
+        above = height.min(axis=1) - level[side]
+        touching = (above < config.height) & slow[side].any(axis=1)
+        turning = (above < LOW_FRACTION * config.height) & (speeds[side].min(axis=1) < 1.5 * limit) & ~touching
+        for a, b in intervals(turning):
+            touching[a:b] = (b - a) >= TURN_TIME * motion.fps
+        labels[side] = _clean(touching, config.min_frames)
         k = np.argmin(height, axis=1)
         rows = np.arange(len(p))
         lowest[side] = p[rows, k]
-        lowest_vel[side] = v[rows, k]
+        lowest_vel[side] = vel[side][rows, k]
     return FootContacts(labels, lowest, lowest_vel, floor, motion.fps, (float(slope[0]), float(slope[1])))
+
+
+#: Seconds of a foot point's displacement its detection speed is measured over (steadier than one frame
+#: at high capture rates, where marker jitter alone reads as tenths of a metre per second).
+SPEED_SPAN = 1.0 / 30.0
+#: Half-width (s) of the window a foot's support level is taken over, the low percentile of its slow
+#: lowest heights there, and the most (m) a foot's level may stand above both feet's.
+LEVEL_WINDOW = 1.0
+LEVEL_PERCENTILE = 10.0
+LEVEL_OWN_PERCENTILE = 50.0
+LEVEL_RAISE = 0.06
+#: Fraction of the height threshold under which a foot counts as planted at up to 1.5 times the speed threshold.
+LOW_FRACTION = 0.4
+#: Seconds a foot must stay in that band to count as turning on the ground.
+TURN_TIME = 0.1
+
+
+def _window_speed(p, fps: float) -> np.ndarray:
+    """``(F, P)`` speed of points ``p (F, P, D)`` over :data:`SPEED_SPAN` (central, clamped at the ends)."""
+    n = len(p)
+    k = max(1, int(fps * SPEED_SPAN / 2 + 1e-9))
+    i = np.arange(n)
+    a, b = np.clip(i - k, 0, n - 1), np.clip(i + k, 0, n - 1)
+    span = np.maximum(b - a, 1) / fps
+    return np.linalg.norm(p[b] - p[a], axis=-1) / span[:, None]
+
+
+def _low_track(h, ok, fps: float, q: float = LEVEL_PERCENTILE) -> np.ndarray:
+    """``(F,)`` the ``q`` percentile of ``h[ok]`` within :data:`LEVEL_WINDOW` of each frame, evaluated
+    every 0.1 s and interpolated (NaN everywhere when too few frames are ``ok``)."""
+    n = len(h)
+    half = max(1, int(round(LEVEL_WINDOW * fps)))
+    need = max(3, int(round(0.1 * fps)))
+    centers = np.unique(np.r_[np.arange(0, n, max(1, int(round(0.1 * fps)))), n - 1])
+    vals = np.full(len(centers), np.nan)
+    for j, c in enumerate(centers):
+        a, b = max(0, c - half), min(n, c + half + 1)
+        x = h[a:b][ok[a:b]]
+        if len(x) >= need:
+            vals[j] = np.percentile(x, q)
+    good = np.isfinite(vals)
+    if not good.any():
+        return np.full(n, np.nan)
+    return np.interp(np.arange(n), centers[good], vals[good])
+
+
+def support_level(low: dict, slow: dict, fps: float) -> dict:
+    """Height of the ground each foot stands on near each frame, relative to the fitted floor.
+
+    Args:
+        low: ``{side: (F,)}`` height of the foot's lowest point above the fitted floor plane.
+        slow: ``{side: (F,) bool}`` frames where some point of the foot is slow.
+        fps: frame rate.
+
+    Returns:
+        ``{side: (F,)}``: the median of the foot's slow lowest heights within a second (a foot standing
+        flat rests its lowest point higher than one rolling over its toes), between both feet's
+        low percentile (the ground nearby) and :data:`LEVEL_RAISE` above it, and never below 0 (the
+        fitted floor stays the lowest ground); where a foot is never slow nearby, both feet's level,
+        else 0.
+    """
+    both = _low_track(np.concatenate([low[s] for s in SIDES]).reshape(2, -1).min(axis=0),
+                      np.logical_or(*[slow[s] for s in SIDES]), fps)
+    both = np.where(np.isfinite(both), both, 0.0)
+    out = {}
+    for s in SIDES:
+        own = _low_track(low[s], slow[s], fps, LEVEL_OWN_PERCENTILE)
+        own = np.where(np.isfinite(own), own, both)
+        out[s] = np.maximum(np.clip(own, both, both + LEVEL_RAISE), 0.0)
+    return out
 
 
 #: A floor plane is fitted only when the planted points spread over at least this many metres.

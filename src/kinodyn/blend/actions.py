@@ -91,12 +91,23 @@ class ActionState:
 
 @dataclass
 class Recording:
-    """Per-frame record of one character: times, each action's action time and weight (NaN when absent)."""
+    """Per-frame record of one character: times, each action's action time and weight (NaN when absent),
+    and how far the foot lock held each foot from the blended pose (:meth:`lock_offsets`)."""
 
     times: list = field(default_factory=list)
     action_time: dict = field(default_factory=dict)
     weight: dict = field(default_factory=dict)
     neutral: list = field(default_factory=list)
+    lock_offset: list = field(default_factory=list)
+
+    def lock_offsets(self) -> np.ndarray:
+        """``(F, 2)`` metres between each held foot (left, right) and where the blended pose put it
+        (:attr:`kinodyn.blend.footlock.FootLock.offset`); NaN where the foot is not held."""
+        n = len(self.times)
+        out = np.full((n, 2), np.nan)
+        if self.lock_offset:
+            out[:len(self.lock_offset)] = np.asarray(self.lock_offset[:n], dtype=np.float64)
+        return out
 
     def arrays(self) -> dict:
         n = len(self.times)

@@ -8,9 +8,12 @@ Measures, on the built-in clips:
 - ``mix_us_per_character_frame``: cost per character and frame of the whole mixer step (updates,
   time warps, weights, sampling, blending, support constraints) with 3 actions contributing to every
   character; ``characters_at_60fps`` is how many such characters one core mixes at 60 frames per
-  second (the frame budget divided by that cost, measured at ``N`` characters).
-- the foot sliding of the figure 12/13 script (:mod:`kinodyn.blend.transitions`) with and without
-  synchronization: ``sliding_ratio`` (unsynchronized over synchronized), ``sliding_cm_s_synced``.
+  second, timed at that count (:func:`characters_at_60fps`).
+- the four-arm evaluation (:mod:`kinodyn.blend.evaluate`) of the built-in figure 12/13 script and of the
+  real-clip scripts (:mod:`kinodyn.blend.realclips`, when the motion capture is present): ``sliding_ratio``
+  (sync + lock over lock alone), ``sliding_ratio_sync_only`` (sync over plain), ``sliding_cm_s_synced``,
+  ``lock_p95_cm``, ``lock_max_cm``, ``lock_p95_ratio``, ``pelvis_acc_ratio``, ``root_decel_ratio``
+  (real-clip scripts prefixed by their name).
 
 Everything runs in this process on one thread (numba kernels included); absolute times are noisy, the
 ratio against the unsynchronized baseline measured in the same run is the robust figure.
@@ -24,7 +27,7 @@ import numpy as np
 
 from kinodyn.bench import BenchResult
 
-__all__ = ["crowd_benchmark", "run", "sliding_benchmark"]
+__all__ = ["characters_at_60fps", "crowd_benchmark", "run", "sliding_benchmark"]
 
 
 def _library():
@@ -85,11 +88,44 @@ def crowd_benchmark(n: int, seconds: float, synchronize: bool = True, seed: int 
             "updates_per_char_s": upd["n"] / (n * frames * dt), "mean_actions": float(np.mean(w))}
 
 
-def sliding_benchmark() -> dict:
-    """Foot sliding of the figure 12/13 script with and without synchronization (see the demo)."""
-    from kinodyn.blend.transitions import sliding_figures, transition_script
+def characters_at_60fps(library, seconds: float, start: int = 200, budget_ms: float = 1e3 / 60.0,
+                        tries: int = 4) -> dict:
+    """The most characters mixed within a 60 fps frame budget, *measured at that count*: a first crowd of
+    ``start`` characters gives an estimate, then crowds of the estimated size are timed (shrinking by the
+    overshoot) until one fits. Returns ``{"characters": n, "frame_ms": ..., "us_per_char_frame": ...}``
+    of the largest count measured to fit (0 when none did)."""
+    r = crowd_benchmark(start, seconds, True, library=library)
+    fit = {"characters": start, **r} if r["frame_ms"] <= budget_ms else {"characters": 0, **r}
+    n = max(int(start * budget_ms / r["frame_ms"]), 1)
+    for _ in range(tries):
+        if n <= fit["characters"]:
+            break
+        r = crowd_benchmark(n, seconds, True, library=library)
+        if r["frame_ms"] <= budget_ms:
+            fit = {"characters": n, **r}
+            n = int(n * min(budget_ms / r["frame_ms"], 1.2))
+        else:
+            n = int(n * 0.97 * budget_ms / r["frame_ms"])
+    return fit
 
-    return sliding_figures(transition_script())
+
+def sliding_benchmark(mocap=None) -> dict:
+    """The four-arm evaluation (:func:`kinodyn.blend.evaluate.evaluate`) of the built-in figure 12/13
+    script and of every real-clip script (:mod:`kinodyn.blend.realclips`) whose files are present."""
+    from kinodyn.blend import realclips
+    from kinodyn.blend.evaluate import evaluate
+    from kinodyn.blend.transitions import transition_script
+
+    out = {"builtin": evaluate(transition_script())}
+    for name, script in realclips.scripts(mocap).items():
+        out[name] = evaluate(script)
+    return out
+
+
+#: The benchmark's headline keys of each script's evaluation (:func:`kinodyn.blend.evaluate.headline`).
+HEADLINE = ("sliding_ratio", "sliding_ratio_sync_only", "sliding_cm_s_synced", "lock_p95_cm", "lock_max_cm",
+            "lock_p95_ratio", "pelvis_acc_ratio", "root_decel_ratio")
+_UNITS = {"sliding_cm_s_synced": "cm/s", "lock_p95_cm": "cm", "lock_max_cm": "cm"}
 
 
 def run(quick: bool = False, progress=None) -> BenchResult:
@@ -115,25 +151,32 @@ def _run(quick: bool) -> BenchResult:
     res.add("sync_us_per_update", sync["us_per_update"], "us")
     res.add("sync_updates_per_character_s", sync["updates_per_char_s"], "1/s")
     res.add("mix_us_per_character_frame", sync["us_per_char_frame"], "us")
-    res.add("characters_at_60fps", (1e6 / 60.0) / sync["us_per_char_frame"], "characters")
     res.add("benchmark_characters", n, "characters")
     res.add("actions_per_character", sync["mean_actions"], "actions")
     res.baseline["mix_us_per_character_frame_unsynchronized"] = base["us_per_char_frame"]
-    res.baseline["characters_at_60fps_unsynchronized"] = (1e6 / 60.0) / base["us_per_char_frame"]
-    sl = sliding_benchmark()
-    res.add("sliding_cm_s_synced", sl["synced"]["sliding_cm_s"], "cm/s")
-    res.add("sliding_cm_s_unsynced", sl["unsynced"]["sliding_cm_s"], "cm/s")
-    res.add("sliding_ratio", sl["sliding_ratio"], "x")
-    res.add("sliding_ratio_transitions", sl["sliding_ratio_transitions"], "x")
-    res.add("sliding_ratio_detected_contacts", sl["sliding_ratio_detected"], "x")
-    res.add("err_frames_synced", sl["synced"]["err_frames"], "frames")
-    res.add("err_frames_unsynced", sl["unsynced"]["err_frames"], "frames")
-    res.baseline["sliding_cm_s_unsynced"] = sl["unsynced"]["sliding_cm_s"]
-    res.baseline["sliding_cm_s_synced_without_constraints"] = sl["synced_plain"]["sliding_cm_s"]
-    res.baseline["sliding_cm_s_unsynced_with_constraints"] = sl["unsynced_constrained"]["sliding_cm_s"]
-    res.notes["sliding"] = ("horizontal speed of the lowest foot point while the actions' support phases put "
-                            "that foot down (weighted vote); synced = synchronization with support "
-                            "constraints, unsynced = the plain blend of the same script")
+    fit = characters_at_60fps(lib, 0.5 if quick else 2.0)
+    res.add("characters_at_60fps", fit["characters"], "characters")
+    res.add("frame_ms_at_characters_at_60fps", fit["frame_ms"], "ms")
+    figs = sliding_benchmark()
+    for script, f in figs.items():
+        prefix = "" if script == "builtin" else f"{script}_"
+        for k in HEADLINE:
+            res.add(prefix + k, f[k], _UNITS.get(k, "x"))
+        for arm, a in f["arms"].items():
+            for k in ("sliding_cm_s", "detected_sliding_cm_s", "lock_p95_cm", "lock_max_cm", "err_frames",
+                      "pelvis_acc", "root_decel", "lowest_foot_cm", "warp_rate_min", "warp_rate_max"):
+                res.baseline[f"{prefix}{arm}_{k}"] = a[k]
+        res.baseline[f"{prefix}source_pelvis_acc"] = f["arms"]["sync_lock"]["pelvis_acc_source"]
+        res.baseline[f"{prefix}source_root_decel"] = f["arms"]["sync_lock"]["root_decel_source"]
+    res.add("err_frames_synced", figs["builtin"]["arms"]["sync_lock"]["err_frames"], "frames")
+    res.notes["sliding"] = ("four arms on the same script (plain, sync, lock, sync_lock: synchronization and the "
+                            "foot lock on or off, everything else equal); sliding is the horizontal speed of the "
+                            "lowest foot point over the frames where the heaviest action's source clip has that "
+                            "foot down (contacts detected on the sources, mapped through the mixer's record); "
+                            "sliding_ratio = lock / sync_lock, sliding_ratio_sync_only = plain / sync, "
+                            "lock_p95_ratio = lock / sync_lock of the held feet's distance from the blended pose; "
+                            "keys without a prefix are the built-in figure 12/13 script")
     res.notes["speed"] = (f"{n} characters, 3 actions each at one priority, one thread; updates are the "
-                          "Python step entries (sync + durations + warp)")
+                          "Python step entries (sync + durations + warp); characters_at_60fps is measured at "
+                          "that count")
     return res

@@ -28,13 +28,12 @@ def add_arguments(p) -> None:
 
 
 def _sliding_line(label, result) -> str:
-    from kinodyn.blend.script import sliding_report
+    from kinodyn.blend.evaluate import measure
 
-    whole = sliding_report(result)
-    trans = sliding_report(result, frames=result.transition_mask())
-    err = int((result.frame_phases() == 3).sum())
-    return (f"  {label:<22} sliding {whole.cm_per_s:6.2f} cm/s over {whole.contact_frames} planted-foot frames, "
-            f"{trans.cm_per_s:6.2f} cm/s in transitions; {err} frames mixing RS with LS")
+    f = measure(result)
+    return (f"  {label:<22} sliding {f['sliding_cm_s']:6.2f} cm/s over {f['planted_frames']} frames the source "
+            f"clips plant a foot, {f['transition_sliding_cm_s']:6.2f} cm/s in transitions; {f['err_frames']} frames "
+            "mixing RS with LS")
 
 
 def run(args) -> int:

@@ -377,6 +377,8 @@ class FootLock:
         release: ``(N, 2, 2)`` IK offset fading out after a foot lifts off.
         drop: ``(N,)`` how far the pelvis is lowered to reach the feet.
         release_z: ``(N, 2)`` height correction fading out after a lift-off.
+        offset: ``(N, 2)`` at the last frame, the distance (m) of each held foot's lowest point from where
+            the blended pose put it before the lock moved the root, the IK included (NaN: not held).
         legs, reach: the legs (or ``None``) and each leg's hip-to-ankle rest length.
     """
 
@@ -391,6 +393,7 @@ class FootLock:
         self.release = np.zeros((N, 2, 2))
         self.drop = np.zeros(N)
         self.release_z = np.zeros((N, 2))
+        self.offset = np.full((N, 2), np.nan)
         self.legs = legs(skeleton)
         self.reach = None
         if self.legs is not None:  # hip-to-ankle length of each leg (the rest bone lengths)
@@ -443,8 +446,12 @@ class FootLock:
         return (not np.any(planted) and not np.any(self.planted) and not np.any(self.release)
                 and not np.any(self.drop) and not np.any(self.release_z))
 
-    def constrain(self, root, q, w, wn, phase, left, rest, dt: float, heading):
+    def constrain(self, root, q, w, wn, phase, left, rest, dt: float, heading, pin: bool = True):
         """Enforce the support on blended poses; returns new ``root (N, 3)`` and ``q (N, J, 4)``.
+
+        With ``pin=False`` only the root moves: it follows the planted feet at once (no halflife), so a
+        foot that carries the body stays where it is without bending a leg (the blend's root motion,
+        :attr:`~kinodyn.blend.mixer.BlendConfig.root_motion`); the legs keep the blended pose.
 
         Args:
             root, q: ``(N, 3)``, ``(N, J, 4)`` the blended poses (world root, local rotations).
@@ -464,24 +471,34 @@ class FootLock:
         _support_kernel(np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(wn, dtype=np.float64),
                         np.ascontiguousarray(phase, dtype=np.int8), left, support, planted, vote)
         self.support = support
+        self.offset = np.full((N, 2), np.nan)
         if self.idle(planted):
             return root, q
         root = np.array(root, dtype=np.float64)
+        before = root.copy()
         q = np.ascontiguousarray(q, dtype=np.float64)
-        gr, gp, target, xy, lift, need = self._hold(root, q, planted, vote, left, rest, dt)
+        gr, gp, target, xy, lift, need = self._hold(root, q, planted, vote, left, rest, dt, pin)
         self.planted = planted
+        if not pin:
+            return root, q
+        # how far each held foot is from where this frame's blend put it (before the root followed)
+        blend_xy = xy - (root[:, None, :2] - before[:, None, :2])
+        sink = lift - self.drop[:, None]
+        off = np.sqrt(((target - blend_xy) ** 2).sum(axis=-1) + sink ** 2)
+        self.offset = np.where(planted, off, np.nan)
         for s, leg in enumerate(self.legs):
             r = np.nonzero(need[:, s])[0]
             if len(r):
                 q = pin_feet_fast(q, gr, gp, leg, r, target[r, s], xy[r, s], heading[r], dz=lift[r, s])
         return root, q
 
-    def _hold(self, root, q, planted, vote, left, rest, dt: float):
+    def _hold(self, root, q, planted, vote, left, rest, dt: float, pin: bool = True):
         """Run :func:`_hold_kernel`; returns the legs' world rotations and positions ``gr``, ``gp`` and the
         kernel's ``target``, ``xy``, ``lift``, ``need``."""
         cfg = self.config
         hl = cfg.root_halflife
         alpha = 1.0 if hl <= 0 else 1.0 - 0.5 ** (dt / hl)
+        drop = float(cfg.max_pelvis_drop) if pin else 0.0
         decay = 0.5 ** (dt / cfg.release_halflife) if cfg.release_halflife > 0 else 0.0
         N, J = q.shape[:2]
         gr = np.zeros((N, J, 4))  # only the legs' chains are computed
@@ -494,6 +511,5 @@ class FootLock:
         _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left,
                      np.ascontiguousarray(rest, dtype=np.float64), self.planted, self.foot_pt, self.foot_xy,
                      self.release, self.release_z, self.drop, joints, nj, par, off, ne, hips, ankles, reach, alpha,
-                     decay, float(cfg.max_foot_offset), float(cfg.max_pelvis_drop),
-                     float(cfg.max_pelvis_drop) * dt / DROP_TIME, target, xy, lift, need)
+                     decay, float(cfg.max_foot_offset), drop, drop * dt / DROP_TIME, target, xy, lift, need)
         return gr, gp, target, xy, lift, need

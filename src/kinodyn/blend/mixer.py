@@ -90,6 +90,12 @@ class BlendConfig:
             stretching the leg.
         max_pelvis_drop: metres the pelvis may come down so that a planted foot stays within its leg's
             reach (a straight back leg at push-off); 0 never lowers it.
+        root_motion: how the root moves over the floor. ``"clips"``: the weighted mix of the actions'
+            root displacements. ``"support"`` (default): the same, then corrected so that the feet the
+            actions' support phases plant stay in place (each by the share of the weight it carries).
+            While weights ramp, the mix of displacements alone moves a planted foot by the weight change
+            times the difference of where the clips put that foot; with synchronized supports there is
+            one planted foot to follow, without them the actions disagree on it.
     """
 
     synchronize: bool = True
@@ -104,6 +110,7 @@ class BlendConfig:
     release_halflife: float = 0.05
     max_foot_offset: float = 0.5
     max_pelvis_drop: float = 0.05
+    root_motion: str = "support"
 
     @property
     def enforce(self) -> bool:
@@ -125,6 +132,8 @@ class BlendConfig:
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ParameterError(f"{name} must be a non-negative number of seconds, got {v}")
+        if self.root_motion not in ("clips", "support"):
+            raise ParameterError(f"root_motion must be 'clips' or 'support', got {self.root_motion!r}")
         if self.average not in _AVERAGES:
             raise ParameterError(f"average must be one of {', '.join(_AVERAGES)}, got {self.average!r}")
 
@@ -302,15 +311,17 @@ class Mixer:
         g = self.ground
         root = np.stack([g[:, 0], g[:, 1], zz], axis=1)
         q[:, 0] = quat.mul(quat.from_heading(g[:, 2]), q[:, 0])
-        if move and self.config.enforce and self.footlock.legs is not None:
+        follow = self.config.enforce or self.config.root_motion == "support"
+        if move and follow and self.footlock.legs is not None:
             sh = P.left_share
             total = np.maximum(w.sum(axis=1) + wn, 1e-12)
             left = ((w * (sh[i0] * (1.0 - a) + sh[i0 + 1] * a)).sum(axis=1) + 0.5 * wn) / total
             rest = ((w * P.rest[clip]).sum(axis=1) + wn * self.neutral_rest) / total
-            root, q = self.footlock.constrain(root, q, w, wn, phase, left, rest, dt, g[:, 2])
+            root, q = self.footlock.constrain(root, q, w, wn, phase, left, rest, dt, g[:, 2], pin=self.config.enforce)
             self.ground = np.concatenate([root[:, :2], g[:, 2:]], axis=1)
         if self.recordings is not None and move:
-            self._record(t, h, w, wn, r)
+            held = self.config.enforce and self.footlock.legs is not None
+            self._record(t, h, w, wn, r, self.footlock.offset if held else None)
         return Pose(root, q)
 
     def _blend(self, i0, a, w, wn):
@@ -327,11 +338,12 @@ class Mixer:
         z = zdb[i0] * (1.0 - a) + zdb[i0 + 1] * a
         return q, (w * z).sum(axis=1) + wn * nz
 
-    def _record(self, t, h, w, wn, r):
+    def _record(self, t, h, w, wn, r, offset=None):
         for n, rec in enumerate(self.recordings):
             fi = len(rec.times)
             rec.times.append(t)
             rec.neutral.append(float(wn[n]))
+            rec.lock_offset.append((np.nan, np.nan) if offset is None else tuple(offset[n]))
             for s, key in enumerate(self.slots.keys[n]):
                 if key is None:
                     continue

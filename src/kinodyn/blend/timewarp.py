@@ -35,6 +35,7 @@ __all__ = [
     "Segment",
     "WarpConfig",
     "WarpPlanner",
+    "bounded_duration",
     "cardinal_tangents",
     "eval_poly",
     "hermite_coefficients",
@@ -50,15 +51,24 @@ class WarpConfig:
 
     Attributes:
         tension: cardinal-spline tension ``c`` in ``[0, 1)``; 0 is Catmull-Rom.
-        monotone: clip tangents so the warp never decreases (action time never runs backwards).
+        monotone: clip tangents so the warp never decreases (action time never runs backwards), and
+            keep each knot's tangent between the speeds of the two segments it joins.
+        min_rate, max_rate: bounds on every action's speed (action time per second): a step lasts the
+            duration of equation 6 clipped so that each action present plays its span within them
+            (where the spans differ too much for both bounds, the geometric middle of the two limits).
     """
 
     tension: float = 0.0
     monotone: bool = True
+    min_rate: float = 0.5
+    max_rate: float = 2.0
 
     def __post_init__(self):
         if not (np.isfinite(self.tension) and 0.0 <= self.tension < 1.0):
             raise ParameterError(f"tension must be in [0, 1), got {self.tension}")
+        if not (0.0 < self.min_rate <= 1.0 <= self.max_rate and np.isfinite(self.max_rate)):
+            raise ParameterError(f"rates must satisfy 0 < min_rate <= 1 <= max_rate < inf, got "
+                                 f"{self.min_rate} and {self.max_rate}")
 
 
 def step_durations(spans, weights) -> np.ndarray:
@@ -84,6 +94,22 @@ def step_durations(spans, weights) -> np.ndarray:
     sw = w.sum(axis=1)
     mean = d0.sum(axis=1) / present.sum(axis=1)
     return np.where(sw > 0, (w * d0).sum(axis=1) / np.where(sw > 0, sw, 1.0), mean)
+
+
+def bounded_duration(d: float, spans, min_rate: float, max_rate: float, weights=None) -> float:
+    """Step duration ``d`` clipped so that every span of ``spans`` (action time each action spends in the
+    step) plays at a rate within ``[min_rate, max_rate]``; where no duration does, the geometric middle
+    of the two limits (both bounds missed by the same factor). ``weights`` (the actions' leg weights)
+    are accepted for the caller's convenience and do not change the bounds."""
+    w = [1.0] * len(spans) if weights is None else list(weights)
+    pairs = [(x, wi) for x, wi in zip(spans, w) if x > 0]
+    if not pairs:
+        return d
+    group = [x for x, _ in pairs]
+    lo, hi = max(group) / max_rate, min(group) / min_rate
+    if lo <= hi:
+        return min(max(d, lo), hi)
+    return math.sqrt(lo * hi)
 
 
 def _limit(m, left, right):
@@ -251,6 +277,7 @@ class WarpPlanner:
             num = den = tot = 0.0
             cnt = 0
             spans = []
+            ws = []
             ts = T[s]
             if ts >= until and ts != w_time:  # a ramp event lies behind (or a ramp runs): weigh again
                 w_time = ts
@@ -272,6 +299,7 @@ class WarpPlanner:
                     sp = share(tr, s, from_step, kn)
                 spans.append((kn, sp))
                 w = w_now.get(key, 0.0)
+                ws.append(w)
                 num += w * sp
                 den += w
                 tot += sp
@@ -280,6 +308,7 @@ class WarpPlanner:
                 T[s + 1] = ts
                 break
             d = num / den if den > 0 else tot / cnt  # equation 6 (plain mean when no weight)
+            d = bounded_duration(d, [sp for _, sp in spans], self.config.min_rate, self.config.max_rate, ws)
             T[s + 1] = ts + max(d, 1e-4)
             for kn, sp in spans:
                 kn[s + 1] = kn[s] + sp
@@ -357,7 +386,9 @@ class WarpPlanner:
                 h2, t2 = kn[k + 2], T[k + 2]
                 m1 = (1.0 - tension) * (h2 - h0) / (t2 - t0)
                 if mono:
-                    m1 = min(max(m1, 0.0), 3.0 * min(sec, (h2 - h1) / max(t2 - t1, 1e-12)))
+                    sec2 = (h2 - h1) / max(t2 - t1, 1e-12)
+                    lo, hi = min(sec, sec2), max(sec, sec2)
+                    m1 = min(max(m1, lo, 0.0), hi, 3.0 * lo)
             else:
                 m1 = sec
             if mono:

@@ -1,0 +1,137 @@
+"""Blend scripts of real motion capture (CMU), for the evaluation of :mod:`kinodyn.blend.evaluate`.
+
+The motion-capture files are not part of kinodyn; each function takes the folder that holds them (the
+layout of the CMU collection described in its manifest: ``locomotion/``, ``reactions/``, ``fighting/``)
+and returns a :class:`~kinodyn.blend.script.Script`, or ``None`` when a file is missing. The cgspeed
+BVH conversions start with a T-pose frame that is not capture: it is dropped (``drop_first: 1``).
+
+- :func:`fig12_script`: the paper's figures 12 and 13 (walk, run, faster walk, a fighting move, walk,
+  jump) with clips of four CMU subjects (ASF/AMC);
+- :func:`walk_run_walk`: a walk, a run and the walk again (ASF/AMC);
+- :func:`walk_stumble`: a walk into a stumble (CMU 104_13) and back to the walk (BVH);
+- :func:`walk_fall_getup`: a walk into a fall on the face (90_16), a get-up (140_01), then standing (BVH).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+__all__ = ["default_folder", "fig12_script", "scripts", "walk_fall_getup", "walk_run_walk", "walk_stumble"]
+
+
+def default_folder() -> Path:
+    """``$KINODYN_MOCAP``, else ``shared/mocap`` beside the repository checkout."""
+    env = os.environ.get("KINODYN_MOCAP")
+    return Path(env) if env else Path(__file__).resolve().parents[3] / ".." / "shared" / "mocap"
+
+
+def _have(folder: Path, *files) -> bool:
+    return all((Path(folder) / f).is_file() for f in files)
+
+
+def _amc_loco(folder: Path) -> dict:
+    loco = Path(folder) / "locomotion"
+    return {
+        "walk": {"file": str(loco / "cmu_07_05-walk.amc"), "fps": 60, "start": 0.3167, "stop": 1.9167, "cyclic": True},
+        "run": {"file": str(loco / "cmu_09_06-run.amc"), "fps": 60, "start": 0.2833, "stop": 1.0167, "cyclic": True},
+    }
+
+
+def fig12_script(folder, fight=("cmu_135_06-martialArts.amc", 8.9, 11.1)):
+    """Figures 12/13 with CMU clips: one cycle of a slow walk (07_05) and of a run (09_06), a fighting
+    move (default: a karate kata stretch that steps into a stance and blocks, subject 135), a forward
+    jump (01_01)."""
+    from kinodyn.blend.script import parse_script
+
+    folder = Path(folder)
+    name, a, b = fight
+    if not _have(folder, "locomotion/cmu_07_05-walk.amc", "locomotion/cmu_09_06-run.amc",
+                 "locomotion/cmu_01_01.amc", f"fighting/{name}"):
+        return None
+    clips = _amc_loco(folder)
+    clips["fight"] = {"file": str(folder / "fighting" / name), "fps": 60, "start": a, "stop": b}
+    clips["jump"] = {"file": str(folder / "locomotion" / "cmu_01_01.amc"), "fps": 60, "start": 1.0, "stop": 3.2}
+    return parse_script({
+        "name": "cmu_fig12", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "clips": clips,
+        "actions": [
+            {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
+            {"clip": "run", "start": 2.8, "stop": 6.0, "priority": 1},
+            {"clip": "walk", "start": 5.8, "stop": 8.5, "priority": 1, "speed": 1.3, "key": "fast_walk"},
+            {"clip": "fight", "start": 8.2, "priority": 2},
+            {"clip": "walk", "start": 9.6, "stop": 12.0, "priority": 1, "key": "walk_again"},
+            {"clip": "jump", "start": 11.8, "priority": 2}]})
+
+
+def walk_run_walk(folder):
+    """A CMU walk cycle (07_05), a run cycle (09_06), the walk again."""
+    from kinodyn.blend.script import parse_script
+
+    if not _have(folder, "locomotion/cmu_07_05-walk.amc", "locomotion/cmu_09_06-run.amc"):
+        return None
+    return parse_script({
+        "name": "cmu_walk_run_walk", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "clips": _amc_loco(Path(folder)),
+        "actions": [
+            {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
+            {"clip": "run", "start": 2.8, "stop": 6.0, "priority": 1},
+            {"clip": "walk", "start": 5.8, "stop": 9.0, "priority": 1, "key": "walk_again"}]})
+
+
+def _bvh_walk(folder: Path) -> dict:
+    # one cycle of CMU 02_01 (left heel strike to left heel strike), after the T-pose frame
+    return {"file": str(folder / "locomotion" / "cmu_02_01.bvh"), "drop_first": 1, "fps": 60, "start": 0.1,
+            "stop": 1.2167, "cyclic": True}
+
+
+def walk_stumble(folder):
+    """A walk (CMU 02_01) into the stumbling walk of CMU 104_13 (from 2 s, the stumble at 3.5 s), then the
+    walk again."""
+    from kinodyn.blend.script import parse_script
+
+    folder = Path(folder)
+    if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_104_13.bvh"):
+        return None
+    return parse_script({
+        "name": "cmu_walk_stumble", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5,
+        "clips": {"walk": _bvh_walk(folder),
+                  "stumble": {"file": str(folder / "reactions" / "cmu_104_13.bvh"), "drop_first": 1, "fps": 60,
+                              "start": 2.0, "stop": 4.5}},
+        "actions": [
+            {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
+            {"clip": "stumble", "start": 2.6, "priority": 2},
+            {"clip": "walk", "start": 4.6, "stop": 7.5, "priority": 1, "key": "walk_again"}]})
+
+
+def walk_fall_getup(folder):
+    """A walk (CMU 02_01) into a fall on the face (90_16, from 2.2 s), a get-up from lying face down
+    (140_01, from 1.5 s), then the standing neutral pose."""
+    from kinodyn.blend.script import parse_script
+
+    folder = Path(folder)
+    if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_90_16.bvh", "reactions/cmu_140_01.bvh"):
+        return None
+    return parse_script({
+        "name": "cmu_walk_fall_getup", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5,
+        "clips": {"walk": _bvh_walk(folder),
+                  "fall": {"file": str(folder / "reactions" / "cmu_90_16.bvh"), "drop_first": 1, "fps": 60,
+                           "start": 2.2, "stop": 4.6},
+                  "getup": {"file": str(folder / "reactions" / "cmu_140_01.bvh"), "drop_first": 1, "fps": 60,
+                            "start": 1.5, "stop": 6.9}},
+        "actions": [
+            {"clip": "walk", "start": 0.0, "stop": 2.8, "priority": 1},
+            {"clip": "fall", "start": 2.6, "priority": 2},
+            {"clip": "getup", "start": 4.6, "priority": 3}]})
+
+
+def scripts(folder=None) -> dict:
+    """``{name: Script}`` of every real-clip script whose files are in ``folder`` (default
+    :func:`default_folder`)."""
+    folder = Path(folder) if folder is not None else default_folder()
+    if not folder.is_dir():
+        return {}
+    out = {}
+    for f in (fig12_script, walk_run_walk, walk_stumble, walk_fall_getup):
+        s = f(folder)
+        if s is not None:
+            out[s.name] = s
+    return out
