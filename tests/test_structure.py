@@ -300,3 +300,18 @@ def test_design_md_draws_these_layers():
             if part.strip():
                 drawn[part.strip().rstrip("/")] = layer
     assert drawn == LAYERS
+
+
+#: test files about the project as a whole rather than one module.
+PROJECT_TESTS = {"cold_start", "readme", "setup_system", "structure"}
+
+
+def test_tests_mirror_the_package():
+    """``tests/test_<package>_<module>.py`` (or ``test_<package>.py``) names the module it tests, so a
+    module's tests are found by its name."""
+    tests = Path(__file__).resolve().parent
+    names = {m.removeprefix("kinodyn.").replace(".", "_") for m in MODULES if m != "kinodyn"}
+    stray = [p.name for p in sorted(tests.glob("test_*.py"))
+             if (n := p.stem[len("test_"):]) not in PROJECT_TESTS
+             and not any(n == m or n.startswith(m + "_") for m in names)]
+    assert not stray, f"test files that name no module of kinodyn (rename them after the module): {stray}"
