@@ -115,9 +115,9 @@ def _manifold_point(world: CollisionWorld, bodies: Bodies, ga, gb, point, margin
                 pts.append(v[near])
                 wts.append(margin - d[near])
     if not pts or not sum(len(p) for p in pts):
-        return point
+        return point, False
     p, w = np.concatenate(pts), np.concatenate(wts)
-    return (w[:, None] * p).sum(axis=0) / w.sum()
+    return (w[:, None] * p).sum(axis=0) / w.sum(), len(p) >= 3
 
 
 def _approach(bodies: Bodies, a, b, n, p) -> tuple[float, np.ndarray]:
@@ -144,8 +144,10 @@ def _eff(bodies: Bodies, k, p, d) -> float:
     return out
 
 
-def _impulse(bodies: Bodies, a, b, n, p, cfg: ImpulseConfig, stats: ImpulseStats) -> bool:
-    """Equations 7-10 for one contact; True when an impulse was applied."""
+def _impulse(bodies: Bodies, a, b, n, p, face, cfg: ImpulseConfig, stats: ImpulseStats) -> bool:
+    """Equations 7-10 for one contact; True when an impulse was applied. A resting contact over a face
+    (``face``: three or more manifold vertices) also stops rocking about the face's tangent axes: a
+    rigid block flat on a rigid table cannot tilt into it."""
     vn, v = _approach(bodies, a, b, n, p)
     if vn >= -1e-9:
         return False
@@ -153,6 +155,13 @@ def _impulse(bodies: Bodies, a, b, n, p, cfg: ImpulseConfig, stats: ImpulseStats
     if -vn < cfg.resting_speed:
         e = 0.0
         stats.resting += 1
+        if face:
+            for k in (a, b):
+                if bodies.simulated[k]:
+                    bodies.omega[k] = (bodies.omega[k] @ n) * n
+        vn, v = _approach(bodies, a, b, n, p)
+        if vn >= -1e-9:
+            return True
     else:
         stats.collisions += 1
     j = -(1.0 + e) * vn / (_eff(bodies, a, p, n) + _eff(bodies, b, p, n))
@@ -170,27 +179,27 @@ def _impulse(bodies: Bodies, a, b, n, p, cfg: ImpulseConfig, stats: ImpulseStats
 
 
 def contact_rows(bodies: Bodies, cfg: ImpulseConfig, objects) -> list:
-    """The contacts of ``objects`` within the margin: ``(a, b, normal, manifold point)`` rows."""
+    """The contacts of ``objects`` within the margin: ``(a, b, normal, manifold point, face)`` rows."""
     world = bodies.world
     c = world.contacts(objects, first=bodies.simulated, margin=cfg.margin)
-    return [(int(c.object_a[i]), int(c.object_b[i]), c.normal[i],
-             _manifold_point(world, bodies, c.piece_a[i], c.piece_b[i], c.point[i], cfg.margin))
+    return [(int(c.object_a[i]), int(c.object_b[i]), c.normal[i])
+            + _manifold_point(world, bodies, c.piece_a[i], c.piece_b[i], c.point[i], cfg.margin)
             for i in range(len(c))]
 
 
 def apply_impulses(bodies: Bodies, cfg: ImpulseConfig, stats: ImpulseStats, rows) -> int:
     """Resolve every approaching contact of ``rows`` (:func:`contact_rows`) with impulses in a priority
     queue (most negative normal velocity first); returns the number of impulses applied."""
-    heap = [(_approach(bodies, a, b, n, p)[0], i) for i, (a, b, n, p) in enumerate(rows)]
+    heap = [(_approach(bodies, a, b, n, p)[0], i) for i, (a, b, n, p, _) in enumerate(rows)]
     heapq.heapify(heap)
     count = 0
     while heap and count < cfg.max_impulses:
         vn, i = heapq.heappop(heap)
-        a, b, n, p = rows[i]
-        if vn >= -1e-9 or not _impulse(bodies, a, b, n, p, cfg, stats):
+        a, b, n, p, face = rows[i]
+        if vn >= -1e-9 or not _impulse(bodies, a, b, n, p, face, cfg, stats):
             continue
         count += 1
-        for k, (a2, b2, n2, p2) in enumerate(rows):  # contacts of the bodies that changed come back
+        for k, (a2, b2, n2, p2, _) in enumerate(rows):  # contacts of the bodies that changed come back
             if a2 in (a, b) or b2 in (a, b):
                 v2 = _approach(bodies, a2, b2, n2, p2)[0]
                 if v2 < -1e-9:

@@ -29,6 +29,7 @@ import numpy as np
 from kinodyn.contact.avatar import Avatar, pose_fk, segment_poses
 from kinodyn.contact.ccd import CCDConfig, ccd_solve, chain_fk, chain_limits, project_chain
 from kinodyn.contact.collide import CollisionWorld
+from kinodyn.contact.cones import qmul, qrot
 from kinodyn.contact.depth import global_depth, interpolate_back
 from kinodyn.math import quat
 
@@ -142,13 +143,16 @@ class AvatarDriver:
         self._place(root, q)
         root = self._torso(root, q)
         self.active[:] = False
+        pen = None
         for _ in range(self.cfg.max_rounds):
-            moved = False
-            for c in self.rng.permutation(len(self.avatar.chains)):
-                moved |= self._chain(int(c), root, q)
-            if not moved:
+            cts, rows = self._contacts(self.objs)  # one query per round; chains re-query only themselves
+            if not len(rows):
+                pen = 0.0
                 break
-        pen = self._deepest()
+            for c in self.rng.permutation(len(self.avatar.chains)):
+                self._chain(int(c), root, q, (cts, rows))
+        if pen is None:
+            pen = self._deepest()
         if pen > self.cfg.tolerance and self.free is not None:
             root, q = self._fall_back(root, q)
             pen = self._deepest()
@@ -180,21 +184,28 @@ class AvatarDriver:
         p = sk.parents[chain[0]]
         return gr[p], gp[p]
 
-    def _chain(self, c: int, root, q) -> bool:
-        """Resolve chain ``c`` in place (``q`` is changed); True when it moved."""
+    def _chain(self, c: int, root, q, first=None) -> bool:
+        """Resolve chain ``c`` in place (``q`` is changed); True when it moved. ``first``: contacts of the
+        whole avatar already found this round (used for the first iteration)."""
         av, cfg = self.avatar, self.cfg
         chain = av.chains[c]
         segs = av.joint_segment[chain]
         objs = self.objs[segs[segs >= 0]]
         pos_of = {int(o): int(k) for k, o in zip(np.nonzero(segs >= 0)[0], objs)}
         obj_of = {k: o for o, k in pos_of.items()}
-        base_r, base_p = self._base(root, q, chain)
         offs = av.skeleton.offsets[chain]
         moved = False
-        for _ in range(cfg.max_iterations):
-            cts, rows = self._contacts(objs)
+        base_r = base_p = None
+        for it in range(cfg.max_iterations):
+            if it == 0 and first is not None:
+                cts, rows = first
+                rows = rows[np.isin(cts.object_a[rows], objs)]
+            else:
+                cts, rows = self._contacts(objs)
             if not len(rows):
                 break
+            if base_r is None:
+                base_r, base_p = self._base(root, q, chain)
             link = min(pos_of[int(o)] for o in cts.object_a[rows])
             rows = rows[cts.object_a[rows] == obj_of[link]]
             self.stats.pairs += len(np.unique(cts.object_b[rows]))
@@ -217,17 +228,18 @@ class AvatarDriver:
         push = g.vector * (1.0 + cfg.skin / max(g.depth, 1e-12))
         n = g.vector / max(g.depth, 1e-12)
         d0 = self.avatar.cone_axes[self.avatar.chains[c][link], 0]
-        along = abs(float(quat.mul_vec(gr[link], d0) @ n)) < np.sin(cfg.parallel_angle)
+        along = abs(float(qrot(gr[link], d0) @ n)) < np.sin(cfg.parallel_angle)
         if along and link > 0:  # translate the link out, reconnect the chain above it
             keep = gr[link].copy()
             r = ccd_solve(base_r, base_p, offs, qc, link, np.zeros(3), gp[link] + push, self.limits[c], cfg.ccd,
                           top=link - 1)
             qn = r.local_rot
             gr2, _ = chain_fk(base_r, base_p, offs, qn)
-            qn[link] = quat.inv_mul(gr2[link - 1], keep)
+            qn[link] = qmul(gr2[link - 1] * np.array([1.0, -1.0, -1.0, -1.0]), keep)
             self.stats.joints += link
             return project_chain(qn, self.limits[c])
-        ee_local = quat.inv_mul_vec(gr[link], g.point - gp[link])
+        inv = gr[link] * np.array([1.0, -1.0, -1.0, -1.0])
+        ee_local = qrot(inv, g.point - gp[link])
         r = ccd_solve(base_r, base_p, offs, qc, link, ee_local, g.point + push, self.limits[c], cfg.ccd)
         self.stats.joints += link + 1
         return r.local_rot
@@ -243,7 +255,7 @@ class AvatarDriver:
             self._place(*pose(t))
             return self._deepest()
 
-        t = interpolate_back(overlap, iterations=12, tolerance=self.cfg.tolerance)
+        t = interpolate_back(overlap, iterations=8, tolerance=self.cfg.tolerance)
         root, q = pose(t)
         self._place(root, q)
         return root, q
