@@ -62,7 +62,7 @@ def test_limits_and_cones_hold_after_every_solve(avatar):
 
 def test_reach_cone_projection_is_inside_and_keeps_inside_points(avatar):
     rng = np.random.default_rng(1)
-    chain, lim, *_ = _arm(avatar)
+    _, lim, *_ = _arm(avatar)
     qs = quat.from_rotvec(rng.normal(0, 1.5, (500, 3)))
     for q in qs:
         out = ccd.project_chain(np.tile(q, (4, 1)), lim)
@@ -72,7 +72,7 @@ def test_reach_cone_projection_is_inside_and_keeps_inside_points(avatar):
 
 
 def test_the_shoulder_cone_allows_raising_the_arm_forward_but_not_far_back(avatar):
-    chain, lim, *_ = _arm(avatar)
+    _, lim, *_ = _arm(avatar)
     fwd = quat.from_axis_angle([0, -1.0, 0], np.deg2rad(150))  # arm raised forward and up
     back = quat.from_axis_angle([0, 1.0, 0], np.deg2rad(100))  # arm swung far back
     q = np.tile([1.0, 0, 0, 0], (4, 1))
@@ -96,7 +96,7 @@ def test_no_segment_stays_inside_a_fixed_object_and_limits_hold(name):
     segs = np.arange(len(av.segments)) + first
     worst, touched = 0.0, 0
     for f in range(sim.num_frames()):
-        root, q = sim.frame(f, {})
+        _, q = sim.frame(f, {})
         c = w.contacts(segs)
         hit = fixed[c.object_a] | fixed[c.object_b]
         if hit.any():

@@ -11,7 +11,8 @@ G = 9.81
 TABLE = S.SceneObject("table", "fixed", "wood", (S.box([1.0, 1.0, 0.05]),), pos=[0, 0, 0.7])
 
 
-def _run(objects, seconds, cfg=ImpulseConfig(), fps=60.0):
+def _run(objects, seconds, fps=60.0):
+    cfg = ImpulseConfig()
     w = CollisionWorld(objects)
     b = Bodies(w)
     st = ImpulseStats()

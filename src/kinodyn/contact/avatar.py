@@ -28,7 +28,7 @@ from kinodyn.kinematics import fk_link
 from kinodyn.math import quat
 from kinodyn.skeleton import Skeleton
 
-__all__ = ["Avatar", "build_avatar", "CONE_SHAPES", "CONE_VERTICES", "cone_boundary", "segment_poses", "pose_fk"]
+__all__ = ["CONE_SHAPES", "CONE_VERTICES", "Avatar", "build_avatar", "cone_boundary", "pose_fk", "segment_poses"]
 
 #: Number of vertices of every reach cone polygon.
 CONE_VERTICES = 8
@@ -155,7 +155,7 @@ def build_avatar(skeleton: Skeleton, material: str = "human", name: str = "avata
     joint_segment = np.full(skeleton.num_joints, -1, dtype=np.int64)
     joint_segment[seg_joint] = np.arange(len(seg_joint))
     lims = jl.limits_for(skeleton)
-    chains, torso_joints = _chains(skeleton, lims)
+    chains, _ = _chains(skeleton, lims)
     rest = skeleton.rest_positions()
     axes = np.zeros((skeleton.num_joints, 3, 3))
     pts = np.zeros((skeleton.num_joints, CONE_VERTICES, 2))

@@ -31,8 +31,17 @@ from kinodyn.contact.cones import KIND_BALL, KIND_FIXED, KIND_HINGE, project_joi
 from kinodyn.errors import ParameterError
 from kinodyn.kinematics import fk_link
 
-__all__ = ["CCDConfig", "ChainLimits", "IKResult", "Status", "ccd_solve", "chain_limits", "chain_fk",
-           "limits_hold", "project_chain"]
+__all__ = [
+    "CCDConfig",
+    "ChainLimits",
+    "IKResult",
+    "Status",
+    "ccd_solve",
+    "chain_fk",
+    "chain_limits",
+    "limits_hold",
+    "project_chain",
+]
 
 
 class Status(enum.Enum):
@@ -199,9 +208,10 @@ def ccd_solve(base_rot, base_pos, offsets, local_rot, link: int, ee_local, goal,
     top = link if top is None else int(top)
     lim = limits
     _project_all(q, lim.kind, lim.axis, lim.lower, lim.upper, lim.max_angle, lim.axes, lim.poly)
-    sweeps, err = _ccd_kernel(np.asarray(base_rot, float), np.asarray(base_pos, float),
-                              np.ascontiguousarray(offsets, dtype=np.float64), q, int(link), top,
-                              np.asarray(ee_local, float), np.asarray(goal, float), lim.kind, lim.axis, lim.lower,
+    sweeps, err = _ccd_kernel(np.array(base_rot, dtype=np.float64), np.array(base_pos, dtype=np.float64),
+                              np.array(offsets, dtype=np.float64), q, int(link), top,
+                              np.array(ee_local, dtype=np.float64), np.array(goal, dtype=np.float64), lim.kind,
+                              lim.axis, lim.lower,
                               lim.upper, lim.max_angle, lim.axes, lim.poly, float(cfg.tolerance),
                               int(cfg.max_sweeps))
     status = Status.CONVERGED if err < cfg.tolerance else Status.MAX_SWEEPS

@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from kinodyn.contact.setting import SceneObject
 from kinodyn.contact.cones import qmul, qrot
+from kinodyn.contact.setting import SceneObject
 from kinodyn.errors import ParameterError
 
-__all__ = ["Contacts", "CollisionWorld", "sweep_and_prune", "brute_force_pairs", "PROBE_RADIUS"]
+__all__ = ["PROBE_RADIUS", "CollisionWorld", "Contacts", "brute_force_pairs", "sweep_and_prune"]
 
 #: Radius of the probe sphere used for point distances (m).
 PROBE_RADIUS = 1e-6

@@ -69,7 +69,7 @@ def _write_report(path, frames: dict) -> None:
 def summary(result) -> dict:
     """Table 2's columns of one run."""
     fr = result.frames
-    return {"scene": result.scene, "frames": int(len(fr["frame_ms"])), "frame_ms_mean": float(fr["frame_ms"].mean()),
+    return {"scene": result.scene, "frames": len(fr["frame_ms"]), "frame_ms_mean": float(fr["frame_ms"].mean()),
             "frame_ms_max": float(fr["frame_ms"].max()), "joints_per_frame": float(fr["joints"].mean()),
             "iterations_per_frame": float(fr["iterations"].mean()),
             "ik_share": float(fr["ik_ms"].sum() / max(fr["frame_ms"].sum(), 1e-12)),

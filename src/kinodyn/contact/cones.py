@@ -19,8 +19,18 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["cross3", "qmul", "qrot", "qaxis", "qbetween", "project_joint", "cone_contains", "KIND_BALL", "KIND_HINGE",
-           "KIND_FIXED"]
+__all__ = [
+    "KIND_BALL",
+    "KIND_FIXED",
+    "KIND_HINGE",
+    "cone_contains",
+    "cross3",
+    "project_joint",
+    "qaxis",
+    "qbetween",
+    "qmul",
+    "qrot",
+]
 
 KIND_BALL, KIND_HINGE, KIND_FIXED = 0, 1, 2
 
@@ -44,6 +54,23 @@ def cross3(a, b):  # pragma: no cover - compiled
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
     return out
+
+
+@numba.njit(cache=True)
+def qmat(q):  # pragma: no cover - compiled
+    """``(3, 3)`` rotation matrix of unit quaternion ``q (4,)``."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    r = np.empty((3, 3))
+    r[0, 0] = 1 - 2 * (y * y + z * z)
+    r[0, 1] = 2 * (x * y - w * z)
+    r[0, 2] = 2 * (x * z + w * y)
+    r[1, 0] = 2 * (x * y + w * z)
+    r[1, 1] = 1 - 2 * (x * x + z * z)
+    r[1, 2] = 2 * (y * z - w * x)
+    r[2, 0] = 2 * (x * z - w * y)
+    r[2, 1] = 2 * (y * z + w * x)
+    r[2, 2] = 1 - 2 * (x * x + y * y)
+    return r
 
 
 @numba.njit(cache=True)

@@ -23,7 +23,7 @@ import numpy as np
 from kinodyn.contact.collide import Contacts
 from kinodyn.errors import ParameterError
 
-__all__ = ["GlobalDepth", "global_depth", "pair_depths", "interpolate_back", "CANCEL_RATIO"]
+__all__ = ["CANCEL_RATIO", "GlobalDepth", "global_depth", "interpolate_back", "pair_depths"]
 
 #: ``|PD_g| / max(pd_i)`` below which the normals count as cancelling (figure 4b) and Algorithm 1's
 #: interpolation is used instead of translation.

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinodyn.contact.collide import CollisionWorld
-from kinodyn.contact.cones import cross3, qaxis, qmul
+from kinodyn.contact.cones import cross3, qaxis, qmat, qmul
 from kinodyn.contact.setting import coefficients
 from kinodyn.math import quat
 
-__all__ = ["ImpulseConfig", "Bodies", "step", "couple", "apply_impulses", "contact_rows", "ImpulseStats"]
+__all__ = ["Bodies", "ImpulseConfig", "ImpulseStats", "apply_impulses", "contact_rows", "couple", "step"]
 
 
 @dataclass(frozen=True)
@@ -95,7 +95,7 @@ class Bodies:
 
     def inv_inertia_world(self, k: int) -> np.ndarray:
         """``(3, 3)`` inverse inertia of object ``k`` in the world frame."""
-        r = quat.to_matrix(self.world.quat[k])
+        r = qmat(self.world.quat[k])
         return r @ self.inv_inertia[k] @ r.T
 
     def point_velocity(self, k: int, p) -> np.ndarray:

@@ -23,8 +23,15 @@ import numpy as np
 from kinodyn.contact.setting import Piece, hull
 from kinodyn.errors import FileFormatError, ParameterError
 
-__all__ = ["DecompositionConfig", "check_mesh", "load_mesh", "decompose", "cache_dir", "mesh_pieces",
-           "prism"]
+__all__ = [
+    "DecompositionConfig",
+    "cache_dir",
+    "check_mesh",
+    "decompose",
+    "load_mesh",
+    "mesh_pieces",
+    "prism",
+]
 
 ERR_EMPTY = "mesh {name}: has no triangles (an empty mesh cannot be decomposed into convex pieces)"
 ERR_NAN = "mesh {name}: vertex {k} is not finite ({v}); every vertex coordinate must be a finite number"

@@ -20,8 +20,15 @@ from kinodyn.errors import UnknownNameError
 from kinodyn.math import quat
 from kinodyn.motion import Motion
 
-__all__ = ["SCENARIO_MOTIONS", "HAND_PATHS", "scenario_motion", "hand_object", "hand_path", "hand_pieces",
-           "HAND_PHASES"]
+__all__ = [
+    "HAND_PATHS",
+    "HAND_PHASES",
+    "SCENARIO_MOTIONS",
+    "hand_object",
+    "hand_path",
+    "hand_pieces",
+    "scenario_motion",
+]
 
 _DEG = np.pi / 180.0
 
@@ -97,25 +104,46 @@ _LENGTHS = (0.045, 0.028, 0.022)
 _THUMB_ROOT = np.array([0.0, 0.045, -0.005])
 
 
-def hand_pieces(flex: float, index_flex: float | None = None) -> list:
-    """The 15 ellipsoids of the hand with fingers flexed by ``flex`` (rad per joint; the index finger
-    by ``index_flex`` when given), in the hand frame."""
-    out = [ellipsoid((0.048, 0.045, 0.014))]
+def hand_pose(flex: float, index_flex: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centres ``(15, 3)``, rotations ``(15, 4)`` and radii ``(15, 3)`` of the hand's ellipsoids with the
+    fingers flexed by ``flex`` (rad per joint; the index finger by ``index_flex`` when given), in the hand
+    frame. A phalanx along ``(cos a, 0, -sin a)`` is the x axis turned by ``a`` about y."""
+    pos, rot, rad = [np.zeros(3)], [np.array([1.0, 0, 0, 0])], [np.array([0.048, 0.045, 0.014])]
     for f, root in enumerate(_ROOTS):
         a = flex if (f != 0 or index_flex is None) else index_flex
         p, ang = root.copy(), 0.0
         for length in _LENGTHS:
             ang += a
             d = np.array([np.cos(ang), 0.0, -np.sin(ang)])
-            q = quat.between(np.array([1.0, 0.0, 0.0]), d)
-            out.append(ellipsoid((0.5 * length + 0.004, 0.0085, 0.0085), p + 0.5 * length * d, q))
+            pos.append(p + 0.5 * length * d)
+            rot.append(np.array([np.cos(0.5 * ang), 0.0, np.sin(0.5 * ang), 0.0]))
+            rad.append(np.array([0.5 * length + 0.004, 0.0085, 0.0085]))
             p = p + length * d
-    p, d = _THUMB_ROOT.copy(), np.array([0.6, 0.8, -0.2]) / np.linalg.norm([0.6, 0.8, -0.2])
+    pos += list(_THUMB[0])
+    rot += list(_THUMB[1])
+    rad += list(_THUMB[2])
+    return np.array(pos), np.array(rot), np.array(rad)
+
+
+def _thumb():
+    d = np.array([0.6, 0.8, -0.2]) / np.linalg.norm([0.6, 0.8, -0.2])
+    q = quat.between(np.array([1.0, 0.0, 0.0]), d)
+    p, out = _THUMB_ROOT.copy(), ([], [], [])
     for length in (0.035, 0.028):
-        out.append(ellipsoid((0.5 * length + 0.004, 0.01, 0.01), p + 0.5 * length * d,
-                             quat.between(np.array([1.0, 0.0, 0.0]), d)))
+        out[0].append(p + 0.5 * length * d)
+        out[1].append(q)
+        out[2].append(np.array([0.5 * length + 0.004, 0.01, 0.01]))
         p = p + length * d
     return out
+
+
+_THUMB = _thumb()
+
+
+def hand_pieces(flex: float, index_flex: float | None = None) -> list:
+    """The 15 ellipsoid pieces of :func:`hand_pose`."""
+    pos, rot, rad = hand_pose(flex, index_flex)
+    return [ellipsoid(r, p, q) for p, q, r in zip(pos, rot, rad)]
 
 
 def hand_object(mass: float = 0.5, name: str = "hand") -> SceneObject:

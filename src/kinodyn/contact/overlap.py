@@ -21,7 +21,7 @@ import numpy as np
 from kinodyn.contact.collide import CollisionWorld
 from kinodyn.contact.depth import interpolate_back, pair_depths
 
-__all__ = ["OverlapConfig", "OverlapResult", "PRIORITY", "remove_overlap", "deepest"]
+__all__ = ["PRIORITY", "OverlapConfig", "OverlapResult", "deepest", "remove_overlap"]
 
 #: Who gives way first: lower moves first; fixed objects never move.
 PRIORITY = {"driven": 0, "simulated": 1, "fixed": 2}

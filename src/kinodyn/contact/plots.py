@@ -14,7 +14,7 @@ import numpy as np
 from kinodyn.contact.setting import Piece
 from kinodyn.math import quat
 
-__all__ = ["piece_mesh", "render_frame", "render_frames", "frame_time_plot"]
+__all__ = ["frame_time_plot", "piece_mesh", "render_frame", "render_frames"]
 
 _COLOURS = {"fixed": (0.72, 0.72, 0.70), "simulated": (0.95, 0.55, 0.15), "driven": (0.35, 0.55, 0.9)}
 
@@ -89,9 +89,8 @@ def render_frames(scene, result, out, count: int = 6, around=None, radius: float
     import matplotlib.pyplot as plt
 
     from kinodyn.contact import motions
-    from kinodyn.io.atomic import atomic_path
-
     from kinodyn.contact.simulate import ContactSimulation
+    from kinodyn.io.atomic import atomic_path
 
     names = list(result.names)
     sim = ContactSimulation(scene)

@@ -49,8 +49,16 @@ from kinodyn.contact.setting import KINDS, MATERIALS, SHAPES, Piece, SceneObject
 from kinodyn.errors import FileFormatError, KinodynError
 from kinodyn.math import quat
 
-__all__ = ["Scene", "AvatarSpec", "HandSpec", "load_scene", "parse_scene", "scenes_dir", "scenario_names",
-           "scenario_path"]
+__all__ = [
+    "AvatarSpec",
+    "HandSpec",
+    "Scene",
+    "load_scene",
+    "parse_scene",
+    "scenario_names",
+    "scenario_path",
+    "scenes_dir",
+]
 
 _TOP = {"name", "description", "fps", "frames", "include", "objects", "avatar", "hand"}
 _OBJ = {"name", "kind", "material", "pos", "rot", "quat", "mass", "velocity", "shape", "pieces", "mesh", "scale"}

@@ -19,8 +19,20 @@ import numpy as np
 from kinodyn._arrays import readonly
 from kinodyn.errors import ParameterError, UnknownNameError
 
-__all__ = ["MATERIALS", "KINDS", "SHAPES", "Piece", "SceneObject", "coefficients", "box", "sphere", "capsule",
-           "ellipsoid", "hull", "piece_inertia"]
+__all__ = [
+    "KINDS",
+    "MATERIALS",
+    "SHAPES",
+    "Piece",
+    "SceneObject",
+    "box",
+    "capsule",
+    "coefficients",
+    "ellipsoid",
+    "hull",
+    "piece_inertia",
+    "sphere",
+]
 
 #: Materials of Table 1.
 MATERIALS = ("wood", "human", "metal")
