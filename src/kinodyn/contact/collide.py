@@ -217,7 +217,10 @@ class CollisionWorld:
 
     def candidate_pairs(self, objects=None) -> np.ndarray:
         """Piece pairs ``(P, 2)`` whose boxes overlap (sweep and prune), between allowed objects; with
-        ``objects`` (indices), only pairs with at least one piece of those objects."""
+        ``objects`` (indices), only pairs with at least one piece of those objects (a few objects: their
+        boxes against every box, which is cheaper than a sweep for one limb)."""
+        if objects is not None and len(np.atleast_1d(objects)) <= 8:
+            return self._pairs_of(np.atleast_1d(np.asarray(objects, dtype=np.int64)))
         pairs = sweep_and_prune(self.lo, self.hi)
         oa, ob = self.geom_object[pairs[:, 0]], self.geom_object[pairs[:, 1]]
         keep = self.allowed[oa, ob]
@@ -226,6 +229,17 @@ class CollisionWorld:
             mask[np.asarray(objects, dtype=np.int64)] = True
             keep &= mask[oa] | mask[ob]
         return pairs[keep]
+
+    def _pairs_of(self, objs: np.ndarray) -> np.ndarray:
+        mine = np.concatenate([self._pieces_of[k] for k in objs])
+        hit = np.all((self.lo[mine, None] <= self.hi[None]) & (self.lo[None] <= self.hi[mine, None]), axis=2)
+        i, j = np.nonzero(hit)
+        a, b = mine[i], j
+        inside = np.zeros(len(self.lo), bool)
+        inside[mine] = True
+        keep = self.allowed[self.geom_object[a], self.geom_object[b]] & ~(inside[b] & (b < a))  # each pair once
+        a, b = a[keep], b[keep]
+        return np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
 
     def query(self, pairs: np.ndarray, first=None, margin: float = 0.0) -> Contacts:
         """Narrow phase on piece pairs ``(P, 2)``; the overlapping ones as :class:`Contacts`. With

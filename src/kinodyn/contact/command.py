@@ -72,9 +72,9 @@ def summary(result) -> dict:
     return {"scene": result.scene, "frames": len(fr["frame_ms"]), "frame_ms_mean": float(fr["frame_ms"].mean()),
             "frame_ms_max": float(fr["frame_ms"].max()), "joints_per_frame": float(fr["joints"].mean()),
             "iterations_per_frame": float(fr["iterations"].mean()),
-            "ik_share": float(fr["ik_ms"].sum() / max(fr["frame_ms"].sum(), 1e-12)),
+            "ik_share": float(fr["ik_ms"].sum() / max(fr["wall_ms"].sum(), 1e-12)),
             "pairs_per_frame": float(fr["pairs"].mean()),
-            "query_share": float(fr["query_ms"].sum() / max(fr["frame_ms"].sum(), 1e-12)),
+            "query_share": float(fr["query_ms"].sum() / max(fr["wall_ms"].sum(), 1e-12)),
             "max_penetration_mm": float(fr["penetration_mm"].max()), "fallback_frames": int(fr["fallback"].sum()),
             "collisions": int(fr["collisions"].sum())}
 

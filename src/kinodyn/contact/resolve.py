@@ -108,9 +108,9 @@ class AvatarDriver:
         self.world.set_poses(self.objs, pos, rot)
 
     def _contacts(self, objs):
-        t0 = time.thread_time()
+        t0 = time.perf_counter()
         c = self.world.contacts(objs, first=self._mask(objs))
-        self.stats.query_s += time.thread_time() - t0
+        self.stats.query_s += time.perf_counter() - t0
         ob = c.object_b
         ok = self._mask(objs)[c.object_a] & (c.depth > self.cfg.tolerance)
         ok &= self.obstacle[ob] | (self.mine[ob] & self.cfg.self_collision)
@@ -212,9 +212,9 @@ class AvatarDriver:
             g = global_depth(cts.depth[rows], cts.normal[rows], cts.point[rows])
             if g.cancelling:
                 break
-            t0 = time.thread_time()
+            t0 = time.perf_counter()
             q[chain] = self._solve(c, base_r, base_p, offs, q[chain], link, g)
-            self.stats.ik_s += time.thread_time() - t0
+            self.stats.ik_s += time.perf_counter() - t0
             gr, gp = chain_fk(base_r, base_p, offs, q[chain])
             keep = segs >= 0
             self.world.set_poses(objs, gp[keep], gr[keep])
