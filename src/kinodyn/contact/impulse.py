@@ -30,7 +30,6 @@ import numpy as np
 from kinodyn.contact.collide import CollisionWorld
 from kinodyn.contact.cones import cross3, qaxis, qmat, qmul
 from kinodyn.contact.setting import coefficients
-from kinodyn.math import quat
 
 __all__ = ["Bodies", "ImpulseConfig", "ImpulseStats", "apply_impulses", "contact_rows", "couple", "step"]
 

