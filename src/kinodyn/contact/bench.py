@@ -53,6 +53,7 @@ def _scenarios(res: BenchResult, progress) -> None:
                 res.add(f"frame_ms_hand_{ph}", r.frames["frame_ms"][sel].mean(), "ms")
             res.add("ball_collisions_hand", s["collisions"], "impulses")
             continue
+        res.add(f"fallback_frames_{name}", s["fallback_frames"], "frames")
         for key, unit in (("joints_per_frame", "joints"), ("iterations_per_frame", "iterations"),
                           ("ik_share", "fraction"), ("pairs_per_frame", "pairs"), ("query_share", "fraction")):
             res.add(f"{key}_{name}", s[key], unit)
