@@ -144,7 +144,8 @@ def frame_time_plot(results, path) -> Path:
     for r in results:
         ax.plot(r.frames["frame_ms"], lw=0.8, label=r.scene)
     ax.set_xlabel("frame")
-    ax.set_ylabel("frame time (ms)")
+    ax.set_ylabel("frame time, CPU (ms)")
+    ax.set_yscale("log")
     ax.legend(fontsize=7)
     fig.tight_layout()
     with atomic_path(path, suffix=".png") as tmp:
