@@ -70,7 +70,9 @@ class FrameStats:
 
     Attributes: iterations (CCD solves with a readjusted goal), joints (joints turned by IK), pairs
     (overlapping object pairs found), ik_s and query_s (time in IK and in collision queries),
-    penetration (deepest overlap left, m), fallback (Algorithm 1's interpolation was used).
+    penetration (deepest overlap left, m), fallback (Algorithm 1's interpolation was used), solved
+    (chains turned by IK or held from the last frame: those are inside their limits and reach cones;
+    chains IK never touched keep the tracked angles).
     """
 
     iterations: int = 0
@@ -80,6 +82,7 @@ class FrameStats:
     query_s: float = 0.0
     penetration: float = 0.0
     fallback: bool = False
+    solved: tuple = ()
 
 
 class AvatarDriver:
@@ -140,9 +143,11 @@ class AvatarDriver:
                 if self.active[c]:
                     q[chain] = quat.slerp(self.solved[1][chain], q[chain], alpha)
         for c, chain in enumerate(self.avatar.chains):
-            q[chain] = project_chain(q[chain], self.limits[c])
+            if self.active[c]:  # still held by IK: inside its limits and cones from here on
+                q[chain] = project_chain(q[chain], self.limits[c])
         self._place(root, q)
         root = self._torso(root, q)
+        held = self.active.copy()
         self.active[:] = False
         pen = None
         for _ in range(self.cfg.max_rounds):
@@ -156,9 +161,14 @@ class AvatarDriver:
             pen = self._deepest()
         if pen > self.cfg.tolerance and self.free is not None:
             root, q = self._fall_back(root, q)
+            for c in np.nonzero(self.active | held)[0]:  # the way back stays inside the limits
+                chain = self.avatar.chains[c]
+                q[chain] = project_chain(q[chain], self.limits[c])
+            self._place(root, q)
             pen = self._deepest()
             self.stats.fallback = True
         self.stats.penetration = pen
+        self.stats.solved = tuple(int(c) for c in np.nonzero(self.active | held)[0])
         self.solved = (root.copy(), q.copy())
         if pen <= self.cfg.tolerance:
             self.free = (root.copy(), q.copy())
@@ -198,11 +208,11 @@ class AvatarDriver:
         moved = False
         base_r = base_p = None
         for it in range(cfg.max_iterations):
-            if it == 0 and first is not None:
+            if it == 0 and first is not None:  # the round's query says whether this chain touches anything
                 cts, rows = first
-                rows = rows[np.isin(cts.object_a[rows], objs)]
-            else:
-                cts, rows = self._contacts(objs)
+                if not (np.isin(cts.object_a[rows], objs) | np.isin(cts.object_b[rows], objs)).any():
+                    break
+            cts, rows = self._contacts(objs)  # with the chain's links as ``a``
             if not len(rows):
                 break
             if base_r is None:

@@ -52,6 +52,7 @@ class RunResult:
         pos, quat: ``(F, N, 3)``, ``(F, N, 4)`` object trajectories.
         frames: per-frame figures, a ``(F,)`` array per key of :data:`FRAME_KEYS`.
         fps: frame rate.
+        solved: per frame, the avatar chains IK solved or held (inside their limits and cones).
     """
 
     scene: str
@@ -62,6 +63,7 @@ class RunResult:
     quat: np.ndarray
     frames: dict
     fps: float
+    solved: tuple = ()
 
 
 class ContactSimulation:
@@ -155,7 +157,7 @@ class ContactSimulation:
         rec = {k: np.zeros(n) for k in FRAME_KEYS}
         pos = np.zeros((n, self.world.num_objects, 3))
         quats = np.zeros((n, self.world.num_objects, 4))
-        roots, rots = [], []
+        roots, rots, solved = [], [], []
         it = range(n) if progress is None else progress(range(n), desc=self.scene.name)
         for f in it:
             out = {}
@@ -166,6 +168,7 @@ class ContactSimulation:
             if pose is not None:
                 roots.append(pose[0])
                 rots.append(pose[1])
+                solved.append(self.driver.stats.solved)
         motion = tracked = None
         if self.tracked is not None:
             tracked = self.tracked[: min(n, self.tracked.num_frames)]
@@ -173,7 +176,7 @@ class ContactSimulation:
             motion = tracked.replace(root_pos=np.array(roots[:k]), local_rot=np.array(rots[:k]),
                                      name=f"{self.scene.name}_resolved")
         return RunResult(self.scene.name, tuple(o.name for o in self.world.objects), motion, tracked, pos, quats,
-                         rec, self.fps)
+                         rec, self.fps, tuple(solved))
 
 
 def run_scene(scene: Scene, frames: int | None = None, config: SimulationConfig | None = None,
