@@ -165,8 +165,12 @@ def set_ctrl(data: mujoco.MjData, c, step: int) -> None:
 
 def frame_controls(characters, data: mujoco.MjData, step: int, nsub: int, ctrl_prev=None, offset: int = 0):
     """``(offset + nsub, nu)`` servo targets of the ``nsub`` steps from world step ``step`` on (rows from
-    ``offset`` on are filled) for dynamic characters following a clip; ``ctrl_prev`` when nobody does."""
-    follow = [c for c in characters if c.mode == "dynamic" and c.ctrl_target is None and c.clip is not None]
+    ``offset`` on are filled) for characters following a clip; ``ctrl_prev`` when nobody does.
+
+    Kinematic characters are included: their servos change nothing while the clip sets their state, but
+    the step in which something hits one is integrated by the engine before it turns dynamic, and that
+    step must pull toward the clip's pose of that instant, not toward the one it started from."""
+    follow = [c for c in characters if c.ctrl_target is None and c.clip is not None]
     if not follow:
         return ctrl_prev
     out = np.empty((offset + nsub, len(data.ctrl))) if ctrl_prev is None else ctrl_prev
