@@ -282,8 +282,9 @@ class World:
                 recorded).
             loop: repeat the clip (for cyclic clips: each repetition starts where the last one ended, moved
                 on the floor); otherwise hold the last frame.
-            align_floor: ``True`` shifts the clip vertically so the body's lowest point touches the floor
-                (median over the clip); ``False`` plays it as is; a number shifts by that.
+            align_floor: ``True`` moves each frame vertically so the floor the clip was captured on
+                (a plane fitted to the body's lowest points, which follows a floor that is not level)
+                lies on the world's floor; ``False`` plays it as is; a number shifts by that.
         """
         if not (np.isfinite(start) and 0.0 <= start <= motion.duration + 1e-9):
             raise ParameterError(f"start must be a clip time within [0, {motion.duration:g}] s, got {start!r}")
