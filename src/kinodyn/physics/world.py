@@ -10,7 +10,10 @@ is in one of two modes:
   projectile, a push, another character) it can switch to dynamic on that very step (``on_impact``).
 * **dynamic**: MuJoCo integrates it; in-engine PD servos (:mod:`kinodyn.physics.tracking`) drive it toward
   the clip's pose at the current time (or a pose set with :meth:`Character.track`). Switching from
-  kinematic starts from the clip's positions and velocities at that instant, so nothing jumps.
+  kinematic starts from the clip's positions and velocities at that instant. One frame later the body
+  is within about 1.4 cm of the clip, but its velocities are 8-14 % (built-in walk and run) and 20-23 %
+  (CMU 02_01) off where the ground does not yet carry the weight the clip needs (the sweep in
+  ``tests/test_physics_switch.py``).
 
 A character can also be given a fixed root (``BodyConfig(root="fixed")``): its pelvis hangs where it is
 placed (a mocap body) and the limbs are simulated.
@@ -282,8 +285,9 @@ class World:
                 recorded).
             loop: repeat the clip (for cyclic clips: each repetition starts where the last one ended, moved
                 on the floor); otherwise hold the last frame.
-            align_floor: ``True`` shifts the clip vertically so the body's lowest point touches the floor
-                (median over the clip); ``False`` plays it as is; a number shifts by that.
+            align_floor: ``True`` moves each frame vertically so the floor the clip was captured on
+                (a plane fitted to the body's lowest points, which follows a floor that is not level)
+                lies on the world's floor; ``False`` plays it as is; a number shifts by that.
         """
         if not (np.isfinite(start) and 0.0 <= start <= motion.duration + 1e-9):
             raise ParameterError(f"start must be a clip time within [0, {motion.duration:g}] s, got {start!r}")
