@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from kinodyn.clips import unroll_loops
 from kinodyn.errors import (
     MotionError,
     ParameterError,
@@ -109,9 +110,7 @@ class _Clip:
         q, v = self.qpos[i], self.qvel[i]
         if rep == 0 or not self.free_root or self.cycle is None:
             return q, v
-        g = self.cycle
-        for _ in range(rep - 1):
-            g = xform.compose(self.cycle, g)
+        g = unroll_loops(self.cycle, self.cycle, rep - 1)  # rep whole loops of the clip, composed
         q, v = q.copy(), v.copy()
         q[:2] = xform.apply(g, q[:2])
         q[3:7] = quat.mul(quat.from_heading(g[2]), q[3:7])
