@@ -239,13 +239,15 @@ def _low_track(h, ok, fps: float, q: float = LEVEL_PERCENTILE) -> np.ndarray:
     n = len(h)
     half = max(1, int(round(LEVEL_WINDOW * fps)))
     need = max(3, int(round(0.1 * fps)))
-    centers = np.unique(np.r_[np.arange(0, n, max(1, int(round(0.1 * fps)))), n - 1])
+    centers = np.arange(0, n, max(1, int(round(0.1 * fps))))
+    if n and centers[-1] != n - 1:
+        centers = np.r_[centers, n - 1]  # sorted and unique (np.unique would import numpy.ma)
     vals = np.full(len(centers), np.nan)
     for j, c in enumerate(centers):
         a, b = max(0, c - half), min(n, c + half + 1)
         x = h[a:b][ok[a:b]]
         if len(x) >= need:
-            vals[j] = np.percentile(x, q)
+            vals[j] = percentile(x, q)
     good = np.isfinite(vals)
     if not good.any():
         return np.full(n, np.nan)
