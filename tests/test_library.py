@@ -23,8 +23,8 @@ _SLIDE_MAX = 0.02  # m/s, mean foot sliding with the default contact thresholds
 
 ALL = library.names()
 BASE = ["idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push", "step_forward_small",
-        "step_forward_large", "step_back_small", "step_back_large", "steps_back", "stumble_side_left",
-        "stumble_side_right", "fall_forward", "fall_backward", "flinch_front", "flinch_side_left",
+        "step_forward_large", "step_back_small", "step_back_large", "steps_back", "steps_forward",
+        "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side", "flinch_front", "flinch_side_left",
         "flinch_side_right", "flinch_back"]
 JOINTS = ("Hips", "Spine", "Spine1", "Neck", "Head", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand",
           "RightShoulder", "RightArm", "RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot",
@@ -319,8 +319,23 @@ def test_falls_end_lying(name):
     assert direction == (1.0 if "forward" in name else -1.0)
 
 
+@pytest.mark.parametrize("name,sign", [("fall_side", 1.0), ("fall_side_mirror", -1.0)])
+def test_side_fall_ends_lying_on_its_side(name, sign):
+    m = library.load(name)
+    d = _root_displacement(m)
+    assert sign * d[1] > 0.6 and abs(d[0]) < 0.1, "falls toward the side it was pushed to"
+    gp, _ = _positions(m)
+    torso = [humanoid().index(j) for j in ("Hips", "Spine", "Spine1", "Neck")]
+    assert gp[-1, torso, 2].max() < 0.3, "the torso lies on the floor"
+    up = quat.mul_vec(m.local_rot[-1, 0], [0.0, 0.0, 1.0])
+    assert sign * up[1] > 0.9, "the spine lies along the floor toward the fall"
+    hips = [humanoid().index(f"{s}UpLeg") for s in ("Left", "Right")]
+    low, high = (0, 1) if sign > 0 else (1, 0)
+    assert gp[-1, hips[low], 2] < gp[-1, hips[high], 2] - 0.1, "lying on the side it fell toward"
+
+
 @pytest.mark.parametrize("name,sign,least", [("step_back_small", -1, 0.12), ("step_back_large", -1, 0.35),
-                                             ("steps_back", -1, 0.9), ("step_forward_small", 1, 0.15),
+                                             ("steps_back", -1, 0.9), ("steps_forward", 1, 0.9), ("step_forward_small", 1, 0.15),
                                              ("step_forward_large", 1, 0.45)])
 def test_steps_move_the_root(name, sign, least):
     for n in (name, f"{name}_mirror"):
