@@ -28,7 +28,7 @@ def responses(lib):
     out = {"front": respond(walk, lib, Ball(direction=np.pi)), "back": respond(walk, lib, Ball(direction=0.0)),
            "side": respond(walk, lib, Ball(direction=-np.pi / 2, target="chest")),
            "push": respond(walk, lib, Push((0.0, 110.0, 0.0), "chest", 1.0)),
-           "punch": respond(data.load("idle"), lib, Attacker(data.load("punch"), (0.95, 0.0, np.pi)))}
+           "punch": respond(data.load("idle"), lib, Attacker(data.load("punch"), (1.0, 0.0, np.pi)))}
     return out
 
 

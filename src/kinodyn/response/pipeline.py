@@ -190,10 +190,15 @@ class Attacker:
         motion: the attacker's clip (same skeleton and fps as the base motion), played kinematically; it
             ignores the contact and finishes its clip.
         at: ``(x, y, heading)`` ground transform of the attacker's first frame.
+        contact_s, max_impulse: the blow stays in contact until it has passed ``max_impulse`` N s (a
+            strong punch passes 10-30) or for ``contact_s`` seconds; then the attacker's bodies stop
+            colliding (a kinematic fist has unlimited mass and would keep driving into the body).
     """
 
     motion: Motion
     at: tuple = (0.0, 0.0, 0.0)
+    contact_s: float = 0.1
+    max_impulse: float = 25.0
 
 
 def _world(skeleton, fps: float, base_track: Motion, impact, lookahead_of=None):
@@ -217,6 +222,18 @@ def _world(skeleton, fps: float, base_track: Motion, impact, lookahead_of=None):
     else:
         w.set_state(lookahead_of.get_state())
     return w, hit, other
+
+
+def _impulse(world, hit) -> np.ndarray:
+    """``(3,)`` total impulse (N s) the character ``hit`` has received so far."""
+    imps = [i.impulse for i in world.impacts if i.character == hit.name]
+    return np.sum(imps, axis=0) if imps else np.zeros(3)
+
+
+def _release(world, other) -> None:
+    """Stop the attacker's bodies colliding with anything (MuJoCo ``contype``/``conaffinity`` of its geoms)."""
+    world.model.geom_contype[other.geom_ids] = 0
+    world.model.geom_conaffinity[other.geom_ids] = 0
 
 
 def _placed(att: Attacker) -> Motion:
@@ -329,14 +346,21 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
     classify = max(config.classify_s, max(feature_times))
     t_end = (impact.time if not isinstance(impact, Attacker) else impact.motion.duration) + config.settle_s
     track = looped(base, t_end + classify + config.horizon_s + 1.0)
-    world, hit, _ = _world(base.skeleton, fps, track, impact)
+    world, hit, other = _world(base.skeleton, fps, track, impact)
     c = _strike(world, hit, impact, config)
+    if other is not None:
+        t_stop = world.time + impact.contact_s
+        while world.time < t_stop - 1e-9 and np.linalg.norm(_impulse(world, hit)) < impact.max_impulse:
+            world.step()
+        _release(world, other)
     states = _states(world, hit, [c / fps + t for t in feature_times])
     t0 = c + int(round(classify * fps))
     while round(world.time * fps) < t0:
         world.step()
     # Lookahead on a copy of the world from now: the timing search needs the simulation further on.
-    ahead, ahead_hit, _ = _world(base.skeleton, fps, track, impact, lookahead_of=world)
+    ahead, ahead_hit, ahead_other = _world(base.skeleton, fps, track, impact, lookahead_of=world)
+    if ahead_other is not None:
+        _release(ahead, ahead_other)
     ahead.track(ahead_hit, track[t0:])
     ahead.step(int(round(config.horizon_s * fps)))
     lookahead = ahead.trajectory(ahead_hit)
@@ -361,7 +385,6 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
         out = out.concatenate(rest, align=False, drop_first=False)
     out = out.replace(name=f"{base.name} -> {clip.name}")
     stages = Stages((0, c), (c, t0), (t0, t1 + 1), (t1 + 1, out.num_frames))
-    imps = [i for i in world.impacts if i.character == hit.name]
-    impulse = np.sum([i.impulse for i in imps], axis=0) if imps else np.zeros(3)
+    impulse = _impulse(world, hit)
     return Response(out, stages, clip.name, k, fs, fm, float(err), c / fps, impulse, sim[c:], lookahead,
                     tuple(states), probs, track[:t1 + 1])
