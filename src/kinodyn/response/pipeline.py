@@ -31,8 +31,8 @@ from kinodyn.motion import Motion
 from kinodyn.response.align import AlignConfig, fast_align
 from kinodyn.response.search import body_tracks, exhaustive, windows
 
-__all__ = ["Attacker", "Ball", "Push", "Response", "ResponseConfig", "Stages", "ease_weights", "eieo", "looped",
-           "respond"]
+__all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "ease_weights", "eieo", "label", "looped",
+           "observe", "respond"]
 
 
 @dataclass(frozen=True)
@@ -201,6 +201,19 @@ class Attacker:
     max_impulse: float = 25.0
 
 
+_BODIES: dict = {}
+
+
+def _body(skeleton):
+    """The physics body of ``skeleton``, built once per process (bodies are immutable once built)."""
+    from kinodyn.physics import build_body
+
+    key = (skeleton.names, skeleton.parents.tobytes(), skeleton.offsets.tobytes())
+    if key not in _BODIES:
+        _BODIES[key] = build_body(skeleton)
+    return _BODIES[key]
+
+
 def _world(skeleton, fps: float, base_track: Motion, impact, lookahead_of=None):
     """The world of a response: the responding character (``hit``) playing ``base_track``, the attacker
     if any; for a lookahead copy (``lookahead_of`` = the original world) the same bodies, the hit
@@ -208,10 +221,10 @@ def _world(skeleton, fps: float, base_track: Motion, impact, lookahead_of=None):
     from kinodyn.physics import World, WorldConfig
 
     w = World(WorldConfig(fps=fps))
-    hit = w.add_character(skeleton, name="hit")
+    hit = w.add_character(_body(skeleton), name="hit")
     other = None
     if isinstance(impact, Attacker):
-        other = w.add_character(skeleton, name="attacker")
+        other = w.add_character(_body(skeleton), name="attacker")
         other.on_impact = "ignore"
         start = 0.0 if lookahead_of is None else min(lookahead_of.time, impact.motion.duration)
         other.play(_placed(impact), start=start)
@@ -319,6 +332,66 @@ def _states(world, hit, times) -> list:
     return out
 
 
+@dataclass
+class Observation:
+    """What the pipeline knows at the end of the classification window (mutable: holds the world).
+
+    Attributes:
+        world, hit: the world (stopped at ``choice_frame``) and the responding character.
+        track: the base motion looped, as played from world frame 0.
+        impact_frame, choice_frame: world frames of the contact and of the end of the classification window.
+        states: :class:`kinodyn.physics.CharacterState` at the feature times after contact.
+        lookahead: the lookahead simulation from ``choice_frame`` on (a Motion).
+    """
+
+    world: object
+    hit: object
+    track: Motion
+    impact_frame: int
+    choice_frame: int
+    states: tuple
+    lookahead: Motion
+
+
+def observe(base: Motion, impact, config: ResponseConfig = ResponseConfig(),
+            feature_times=(0.0, 0.1, 0.2)) -> Observation:
+    """Stages 1-3 up to the choice: play ``base``, deliver ``impact``, simulate the classification window,
+    sample the states at ``feature_times`` after contact, and simulate the lookahead on a copy."""
+    if not isinstance(impact, (Ball, Push, Attacker)):
+        raise ParameterError(f"impact must be a Ball, a Push or an Attacker, got {type(impact).__name__}")
+    fps = base.fps
+    classify = max(config.classify_s, max(feature_times))
+    t_end = (impact.time if not isinstance(impact, Attacker) else impact.motion.duration) + config.settle_s
+    track = looped(base, t_end + classify + config.horizon_s + 0.1)
+    world, hit, other = _world(base.skeleton, fps, track, impact)
+    c = _strike(world, hit, impact, config)
+    if other is not None:
+        t_stop = world.time + impact.contact_s
+        while world.time < t_stop - 1e-9 and np.linalg.norm(_impulse(world, hit)) < impact.max_impulse:
+            world.step()
+        _release(world, other)
+    states = _states(world, hit, [c / fps + t for t in feature_times])
+    t0 = c + int(round(classify * fps))
+    while round(world.time * fps) < t0:
+        world.step()
+    # Lookahead on a copy of the world from now: the timing search needs the simulation further on.
+    ahead, ahead_hit, ahead_other = _world(base.skeleton, fps, track, impact, lookahead_of=world)
+    if ahead_other is not None:
+        _release(ahead, ahead_other)
+    n_ahead = int(round(config.horizon_s * fps))
+    ahead.track(ahead_hit, track[t0:t0 + n_ahead + 2])
+    ahead.step(n_ahead)
+    return Observation(world, hit, track, c, t0, tuple(states), ahead.trajectory(ahead_hit))
+
+
+def label(obs: Observation, library, config: ResponseConfig = ResponseConfig()):
+    """The exhaustive choice for an observation: ``(clip, sim_frame, clip_frame, error)`` with
+    ``sim_frame`` counted from the choice frame (the training label of section 7.2)."""
+    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
+    k, fs, fm, err, _ = _choose(obs.lookahead, library, skip, None, obs.states, config)
+    return k, fs, fm, err
+
+
 def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseConfig = ResponseConfig(),
             feature_times=(0.0, 0.1, 0.2)) -> Response:
     """Play ``base`` (looped) until ``impact`` hits, simulate the reaction and return to a library clip.
@@ -340,30 +413,10 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
         SimulationDivergedError: the physics blew up.
     """
     _check_inputs(base, library)
-    if not isinstance(impact, (Ball, Push, Attacker)):
-        raise ParameterError(f"impact must be a Ball, a Push or an Attacker, got {type(impact).__name__}")
+    obs = observe(base, impact, config, feature_times)
+    world, hit, track, c, t0, states, lookahead = (obs.world, obs.hit, obs.track, obs.impact_frame, obs.choice_frame,
+                                                   obs.states, obs.lookahead)
     fps = base.fps
-    classify = max(config.classify_s, max(feature_times))
-    t_end = (impact.time if not isinstance(impact, Attacker) else impact.motion.duration) + config.settle_s
-    track = looped(base, t_end + classify + config.horizon_s + 1.0)
-    world, hit, other = _world(base.skeleton, fps, track, impact)
-    c = _strike(world, hit, impact, config)
-    if other is not None:
-        t_stop = world.time + impact.contact_s
-        while world.time < t_stop - 1e-9 and np.linalg.norm(_impulse(world, hit)) < impact.max_impulse:
-            world.step()
-        _release(world, other)
-    states = _states(world, hit, [c / fps + t for t in feature_times])
-    t0 = c + int(round(classify * fps))
-    while round(world.time * fps) < t0:
-        world.step()
-    # Lookahead on a copy of the world from now: the timing search needs the simulation further on.
-    ahead, ahead_hit, ahead_other = _world(base.skeleton, fps, track, impact, lookahead_of=world)
-    if ahead_other is not None:
-        _release(ahead, ahead_other)
-    ahead.track(ahead_hit, track[t0:])
-    ahead.step(int(round(config.horizon_s * fps)))
-    lookahead = ahead.trajectory(ahead_hit)
     skip = max(1, int(round(config.min_transition_s * fps)))
     k, fs, fm, err, probs = _choose(lookahead, library, skip, select, states, config)
     clip = library.clip(k)
@@ -387,4 +440,4 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
     stages = Stages((0, c), (c, t0), (t0, t1 + 1), (t1 + 1, out.num_frames))
     impulse = _impulse(world, hit)
     return Response(out, stages, clip.name, k, fs, fm, float(err), c / fps, impulse, sim[c:], lookahead,
-                    tuple(states), probs, track[:t1 + 1])
+                    states, probs, track[:t1 + 1])
