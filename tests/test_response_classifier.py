@@ -64,6 +64,16 @@ def test_dataset_is_the_same_for_one_and_two_workers(small_set, tmp_path):
         Dataset.load(tmp_path / "other.npz")
 
 
+def test_dataset_is_the_same_from_the_ray_backend(small_set):
+    ray = pytest.importorskip("ray")
+    try:
+        remote = generate(6, seed=3, workers=2, chunk_size=3, backend="ray", show_progress=False)
+    finally:
+        ray.shutdown()
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "ball"):
+        np.testing.assert_array_equal(getattr(small_set, k), getattr(remote, k), err_msg=k)
+
+
 def test_saved_model_reloads_and_predicts_identically(rng, lib, tmp_path):
     x, y = _blobs(rng)
     model = train(x, y, "small", lib, folds=3)

@@ -26,6 +26,7 @@ COMMANDS: dict[str, str] = {
     "blend": "kinodyn.commands.blend",
     "view": "kinodyn.commands.view",
     "render": "kinodyn.commands.render",
+    "response": "kinodyn.response.command",
 }
 
 

@@ -21,6 +21,7 @@ DEMO_PARTS: dict[str, str] = {
     "physics": "kinodyn.physics.demo",
     "blend": "kinodyn.blend.demo",
     "viewer": "kinodyn.viz.demo",
+    "response": "kinodyn.response.demo",
 }
 
 

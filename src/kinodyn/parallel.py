@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from kinodyn.errors import ParameterError
-from kinodyn.io.atomic import atomic_path
 from kinodyn.progress import progress
 
 __all__ = ["BACKENDS", "chunks", "default_workers", "run"]
@@ -52,8 +51,14 @@ def _chunk_path(folder: Path, i: int) -> Path:
 
 
 def _save(path: Path, result: dict) -> None:
-    with atomic_path(path, suffix=".npz") as tmp:
+    """Write a chunk atomically: a temporary file in the same folder, then renamed over ``path``."""
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
+    try:
         np.savez(tmp, **{k: np.asarray(v) for k, v in result.items()})
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
 
 
 def _load(path: Path) -> dict:

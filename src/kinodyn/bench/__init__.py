@@ -23,6 +23,7 @@ BENCHMARKS: dict[str, str] = {
     "physics": "kinodyn.bench.physics",
     "blend": "kinodyn.bench.blend",
     "viz": "kinodyn.bench.viz",
+    "response": "kinodyn.response.bench",
 }
 
 

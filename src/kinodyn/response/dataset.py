@@ -117,7 +117,7 @@ class Dataset:
 
 
 def generate(cases: int, seed: int = 0, base: str = "walk", *, workers: int | None = None, backend: str = "local",
-             address: str | None = None, resume_dir=None, chunk_size: int = 8, show_progress=None) -> Dataset:
+             address: str | None = None, resume_dir=None, chunk_size: int = 20, show_progress=None) -> Dataset:
     """``cases`` labelled throws at the built-in humanoid playing ``base`` (see :func:`ball_for`)."""
     from kinodyn import parallel
 
