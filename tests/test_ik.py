@@ -1,5 +1,5 @@
 """Inverse kinematics: the two-bone corrections of a posed chain reach their targets, numpy and
-compiled agree; the pole-based solver is checked in test_library.py."""
+compiled agree; the pole-based solver is checked in test_data_library.py."""
 
 from __future__ import annotations
 

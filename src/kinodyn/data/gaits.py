@@ -201,16 +201,16 @@ _JUMP_POSE = (
     (0.25, {"Spine": (0, 5, 0), "Spine1": (0, 4, 0), "Neck": (0, -6, 0), "Head": (0, -4, 0),
             "LeftArm": (8, -20, 5), "LeftForeArm": (0, -25, 0), "LeftHand": (4, -6, 0)}),
     (0.47, {"Spine": (0, 12, 0), "Spine1": (0, 10, 0), "Neck": (0, -16, 0), "Head": (0, -12, 0),
-            "LeftArm": (10, 45, 0), "LeftForeArm": (0, -15, 0), "LeftHand": (0, 10, 0)}),
+            "LeftArm": (10, 22, 0), "LeftForeArm": (0, -15, 0), "LeftHand": (0, 10, 0)}),
     (0.68, {"Spine": (0, -4, 0), "Spine1": (0, -4, 0), "Neck": (0, 2, 0), "Head": (0, 2, 0),
-            "LeftArm": (14, -125, 0), "LeftForeArm": (0, -20, 0), "LeftHand": (0, -5, 0)}),
+            "LeftArm": (14, -70, 0), "LeftForeArm": (0, -20, 0), "LeftHand": (0, -5, 0)}),
     (0.9, {"Spine": (0, -2, 0), "Spine1": (0, -2, 0), "Neck": (0, 0, 0), "Head": (0, 0, 0),
-           "LeftArm": (18, -140, 0), "LeftForeArm": (0, -25, 0), "LeftHand": (0, -5, 0)}),
+           "LeftArm": (18, -120, 0), "LeftForeArm": (0, -25, 0), "LeftHand": (0, -5, 0)}),
     (1.1, {"Spine": (0, 4, 0), "Spine1": (0, 3, 0), "Neck": (0, -4, 0), "Head": (0, -3, 0),
            "LeftArm": (16, -70, 0), "LeftForeArm": (0, -30, 0), "LeftHand": (0, -5, 0)}),
     (1.32, {"Spine": (0, 12, 0), "Spine1": (0, 8, 0), "Neck": (0, -14, 0), "Head": (0, -10, 0),
             "LeftArm": (14, -35, 0), "LeftForeArm": (0, -35, 0), "LeftHand": (2, -5, 0)}),
-    (1.9, {"Spine": (0, 1, 0), "Spine1": (0, -1, 0), "Neck": (0, 2, 0), "Head": (0, -2, 0),
+    (2.1, {"Spine": (0, 1, 0), "Spine1": (0, -1, 0), "Neck": (0, 2, 0), "Head": (0, -2, 0),
            "LeftArm": (5, -2, -12), "LeftForeArm": (0, -14, 0), "LeftHand": (-2, -6, 0)}),
 )
 
@@ -222,7 +222,7 @@ def _mirror_euler(e):
 def jump(name: str = "jump") -> P.Assembled:
     """A standing vertical jump: the pelvis follows a true ballistic parabola between take-off and
     landing (g = 9.81 m/s^2), the feet roll onto the balls to push off and land ball first."""
-    t_down, t_off, t_land, t_absorb, t_end = 0.47, 0.68, 1.10, 1.32, 1.9
+    t_down, t_off, t_land, t_absorb, t_end = 0.47, 0.68, 1.10, 1.32, 2.1
     z_stand, z_crouch, z_off, z_land, z_absorb = 0.99, 0.80, 1.05, 1.03, 0.81
     flight = t_land - t_off
     v_off = (z_land - z_off) / flight + 0.5 * _GRAVITY * flight

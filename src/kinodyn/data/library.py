@@ -7,7 +7,7 @@ Mirrored variants (``<name>_mirror``, and ``turn_right``, ``stumble_side_right``
 are the left/right mirror images of their source clip (:meth:`kinodyn.motion.Motion.mirrored`) and
 share its skeleton object.
 
-Quality, checked by ``tests/test_library.py`` on every clip: planted feet do not slide (mean foot
+Quality, checked by ``tests/test_data_library.py`` on every clip: planted feet do not slide (mean foot
 sliding under 2 cm/s by :func:`kinodyn.contacts.sliding`), no joint or end site goes under the floor,
 joint angles stay inside :mod:`kinodyn.limits`, cyclic clips loop exactly.
 """
@@ -62,7 +62,7 @@ MIRRORED: dict[str, str] = {
     "flinch_side_right": "flinch_side_left",
 }
 _ASYMMETRIC = ("punch", "kick", "push", "step_forward_small", "step_forward_large", "step_back_small",
-               "step_back_large", "steps_back", "fall_forward", "fall_backward")
+               "step_back_large", "steps_back", "steps_forward", "fall_forward", "fall_backward", "fall_side")
 MIRRORED.update({f"{n}_mirror": n for n in _ASYMMETRIC})
 
 
@@ -77,7 +77,8 @@ def _mirror_description(text: str) -> str:
 
 _ORDER = ("idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push",
           "step_forward_small", "step_forward_large", "step_back_small", "step_back_large", "steps_back",
-          "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "flinch_front",
+          "steps_forward", "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side",
+          "flinch_front",
           "flinch_side_left", "flinch_side_right", "flinch_back")
 
 

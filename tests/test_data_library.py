@@ -25,8 +25,8 @@ _SLIDE_MAX_TURN = 0.045
 
 ALL = library.names()
 BASE = ["idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push", "step_forward_small",
-        "step_forward_large", "step_back_small", "step_back_large", "steps_back", "stumble_side_left",
-        "stumble_side_right", "fall_forward", "fall_backward", "flinch_front", "flinch_side_left",
+        "step_forward_large", "step_back_small", "step_back_large", "steps_back", "steps_forward",
+        "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side", "flinch_front", "flinch_side_left",
         "flinch_side_right", "flinch_back"]
 JOINTS = ("Hips", "Spine", "Spine1", "Neck", "Head", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand",
           "RightShoulder", "RightArm", "RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot",
@@ -320,8 +320,23 @@ def test_falls_end_lying(name):
     assert direction == (1.0 if "forward" in name else -1.0)
 
 
+@pytest.mark.parametrize("name,sign", [("fall_side", 1.0), ("fall_side_mirror", -1.0)])
+def test_side_fall_ends_lying_on_its_side(name, sign):
+    m = library.load(name)
+    d = _root_displacement(m)
+    assert sign * d[1] > 0.6 and abs(d[0]) < 0.1, "falls toward the side it was pushed to"
+    gp, _ = _positions(m)
+    torso = [humanoid().index(j) for j in ("Hips", "Spine", "Spine1", "Neck")]
+    assert gp[-1, torso, 2].max() < 0.3, "the torso lies on the floor"
+    up = quat.mul_vec(m.local_rot[-1, 0], [0.0, 0.0, 1.0])
+    assert sign * up[1] > 0.9, "the spine lies along the floor toward the fall"
+    hips = [humanoid().index(f"{s}UpLeg") for s in ("Left", "Right")]
+    low, high = (0, 1) if sign > 0 else (1, 0)
+    assert gp[-1, hips[low], 2] < gp[-1, hips[high], 2] - 0.1, "lying on the side it fell toward"
+
+
 @pytest.mark.parametrize("name,sign,least", [("step_back_small", -1, 0.12), ("step_back_large", -1, 0.35),
-                                             ("steps_back", -1, 0.9), ("step_forward_small", 1, 0.15),
+                                             ("steps_back", -1, 0.9), ("steps_forward", 1, 0.9), ("step_forward_small", 1, 0.15),
                                              ("step_forward_large", 1, 0.45)])
 def test_steps_move_the_root(name, sign, least):
     for n in (name, f"{name}_mirror"):
@@ -418,3 +433,82 @@ def test_demo_exports_every_clip(tmp_path):
     for name, line in zip(ALL, lines):
         assert line.startswith(name) and "cm/s" in line
         assert (tmp_path / "clips" / f"{name}.bvh").stat().st_size > 1000
+
+
+# --------------------------------------------------------------------------- joint speeds real capture reaches
+
+#: Body parts whose joint speeds are bounded, by joint name (the CMU and built-in skeletons share them).
+_RATE_GROUPS = {"hand": ("LeftHand", "RightHand"), "elbow": ("LeftForeArm", "RightForeArm"), "head": ("Head",),
+                "hips": ("Hips",), "knee": ("LeftLeg", "RightLeg"),
+                "foot": ("LeftFoot", "RightFoot", "LeftToeBase", "RightToeBase")}
+#: Peak joint speed (m/s) and acceleration (m/s^2) at 60 fps per body part, the largest reached by the CMU
+#: captures in _CAPTURES and _FIGHT_CAPTURES (falls, stumbles, a get-up, a pull, walks, punches and karate;
+#: cgspeed T-pose frame 0 skipped, 120 fps capture sampled every second frame), rounded up to 0.1 m/s and
+#: 1 m/s^2.
+#: ``test_rate_bounds_are_what_capture_reaches`` re-measures them.
+_PEAK_SPEED = {"hand": 8.8, "elbow": 6.5, "head": 4.1, "hips": 4.8, "knee": 9.5, "foot": 12.9}
+_PEAK_ACCEL = {"hand": 194, "elbow": 227, "head": 85, "hips": 110, "knee": 431, "foot": 264}
+_CAPTURES = ("reactions/cmu_90_16", "reactions/cmu_85_07", "reactions/cmu_91_59", "reactions/cmu_140_01",
+             "interaction/cmu_18_04", "locomotion/cmu_01_01", "locomotion/cmu_02_01")
+_FIGHT_CAPTURES = ("fighting/cmu_02_05", "fighting/cmu_135_06-martialArts")  # ASF/AMC
+#: ASF bone whose start is the joint of the same place in the BVH skeletons.
+_ASF_JOINTS = {"lwrist": "LeftHand", "rwrist": "RightHand", "lradius": "LeftForeArm", "rradius": "RightForeArm",
+               "head": "Head", "root": "Hips", "ltibia": "LeftLeg", "rtibia": "RightLeg", "lfoot": "LeftFoot",
+               "rfoot": "RightFoot", "ltoes": "LeftToeBase", "rtoes": "RightToeBase"}
+_REST_SPEED = 0.5  # m/s, fastest joint between the first two frames of a clip that starts from standing
+_STOP_SPEED = 0.05  # m/s, fastest joint between the last two frames of a clip that ends standing or lying
+
+
+def _rates(gp: np.ndarray, fps: float, names) -> dict[str, tuple[float, float]]:
+    """Per body part of ``_RATE_GROUPS``: (peak speed, peak acceleration) of joint positions ``gp (F, J, 3)``."""
+    v = np.linalg.norm(np.diff(gp, axis=0), axis=-1) * fps
+    a = np.linalg.norm(np.diff(gp, 2, axis=0), axis=-1) * fps ** 2
+    out = {}
+    for group, joints in _RATE_GROUPS.items():
+        idx = [names.index(j) for j in joints]
+        out[group] = (float(v[:, idx].max()), float(a[:, idx].max()))
+    return out
+
+
+def _joint_speeds(m) -> np.ndarray:
+    gp, _ = _positions(m)
+    return np.linalg.norm(np.diff(gp, axis=0), axis=-1) * m.fps
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_clip_joint_speeds_stay_within_capture(name):
+    """Regression: flinch_front and steps_back snapped the hands from rest to 8-13 m/s in a few frames."""
+    m = library.load(name)
+    gp, _ = _positions(m)
+    for group, (speed, accel) in _rates(gp, m.fps, list(m.skeleton.names)).items():
+        assert speed <= _PEAK_SPEED[group], f"{name}: {group} reaches {speed:.1f} m/s"
+        assert accel <= _PEAK_ACCEL[group], f"{name}: {group} accelerates at {accel:.0f} m/s^2"
+
+
+@pytest.mark.parametrize("name", [n for n in ALL if not library.info(n).cyclic])
+def test_clip_starts_and_ends_at_rest(name):
+    """Regression: the punch ended with its hand still moving at 0.26-0.58 m/s."""
+    v = _joint_speeds(library.load(name))
+    assert v[0].max() < _REST_SPEED, f"{name}: a joint starts at {v[0].max():.2f} m/s"
+    assert v[-1].max() < _STOP_SPEED, f"{name}: a joint still moves at {v[-1].max():.2f} m/s at the end"
+
+
+def test_rate_bounds_are_what_capture_reaches(mocap_dir):
+    from kinodyn.io.amc import read_amc
+    from kinodyn.io.bvh import read_bvh
+
+    peak = {g: [0.0, 0.0] for g in _RATE_GROUPS}
+    measured = []
+    for clip in _CAPTURES:
+        m = read_bvh(mocap_dir / f"{clip}.bvh")
+        # Frame 0 is the converter's T-pose; 120 fps -> 60 fps.
+        measured.append((m.global_positions()[1::2], list(m.skeleton.names)))
+    for clip in _FIGHT_CAPTURES:
+        m = read_amc(mocap_dir / f"{clip}.amc", fps=120.0)
+        measured.append((m.global_positions()[::2], [_ASF_JOINTS.get(n, n) for n in m.skeleton.names]))
+    for gp, names in measured:
+        for group, (speed, accel) in _rates(gp, 60.0, names).items():
+            peak[group] = [max(peak[group][0], speed), max(peak[group][1], accel)]
+    for group, (speed, accel) in peak.items():
+        assert _PEAK_SPEED[group] == pytest.approx(np.ceil(speed * 10.0) / 10.0, abs=0.11), group
+        assert _PEAK_ACCEL[group] == pytest.approx(np.ceil(accel), abs=1.01), group

@@ -1,0 +1,140 @@
+"""The reaction classifier (dynamic response, sections 4.1 and 4.2): an SVM picks the reaction clip from
+the simulated state just after contact.
+
+scikit-learn's ``SVC`` with a polynomial kernel ``K(x, y) = (gamma x.y + coef0)^degree`` on standardized
+features (:mod:`kinodyn.response.features`), the cost ``C``, ``degree`` and ``coef0`` chosen by
+cross-validation over a small grid; Platt-scaled class probabilities. A model is saved as a folder:
+``model.skops`` (the fitted scaler and SVC through skops, never pickle; only the scikit-learn and numpy
+types this module uses are trusted on loading) and ``model.json`` (feature set, clip names, the library
+signature it was trained for, cross-validation scores, training size). Loading checks the library.
+
+Needs the optional ``learn`` extra (scikit-learn, skops).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from kinodyn.errors import FileFormatError, ParameterError
+from kinodyn.io.atomic import atomic_path
+from kinodyn.response.features import FEATURE_SETS, features
+
+__all__ = ["GRID", "ReactionModel", "train"]
+
+FORMAT = "kinodyn.response-model/1"
+#: Cross-validation grid (the kernel is polynomial throughout).
+GRID = {"svc__C": [1.0, 10.0, 100.0], "svc__degree": [2, 3], "svc__coef0": [1.0]}
+_TRUSTED_PREFIXES = ("sklearn.", "numpy.")
+
+
+@dataclass
+class ReactionModel:
+    """A trained classifier.
+
+    Attributes:
+        pipeline: the fitted scikit-learn pipeline (StandardScaler then SVC).
+        kind: feature set, ``"large"`` or ``"small"``.
+        clips: names of the library's clips (class ``k`` is clip ``clips[k]``).
+        library: signature of the library it was trained for.
+        info: training facts (cases, CV accuracy, chosen parameters).
+    """
+
+    pipeline: object
+    kind: str
+    clips: tuple
+    library: str
+    info: dict = field(default_factory=dict)
+
+    def predict_features(self, x: np.ndarray) -> np.ndarray:
+        """``(N,)`` clip indices for feature rows ``x (N, n)``."""
+        return self.pipeline.predict(np.atleast_2d(np.asarray(x, dtype=np.float64))).astype(np.int64)
+
+    def probabilities(self, x: np.ndarray) -> np.ndarray:
+        """``(N, K)`` class probabilities over every library clip (0 for clips never seen in training)."""
+        p = self.pipeline.predict_proba(np.atleast_2d(np.asarray(x, dtype=np.float64)))
+        out = np.zeros((len(p), len(self.clips)))
+        out[:, self.pipeline.classes_.astype(np.int64)] = p
+        return out
+
+    def __call__(self, states) -> tuple[int, np.ndarray]:
+        """The ``select`` of :func:`kinodyn.response.pipeline.respond`: clip index and probabilities for
+        the states at 0.0, 0.1 and 0.2 s after contact."""
+        x = features(states, self.kind)[None]
+        return int(self.predict_features(x)[0]), self.probabilities(x)[0]
+
+    def check_library(self, library) -> None:
+        """Raise :class:`ParameterError` when ``library`` is not the one the model was trained for."""
+        if library.signature() != self.library:
+            raise ParameterError(f"the model was trained for another reaction library ({self.library[:60]}...), "
+                                 f"not this one ({library.signature()[:60]}...)")
+
+    def save(self, folder) -> None:
+        """Write ``model.skops`` and ``model.json`` into ``folder`` (created), each atomically."""
+        import skops.io as sio
+
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        with atomic_path(folder / "model.skops", suffix=".skops") as tmp:
+            sio.dump(self.pipeline, tmp)
+        meta = {"format": FORMAT, "kind": self.kind, "clips": list(self.clips), "library": self.library,
+                "info": self.info}
+        with atomic_path(folder / "model.json", suffix=".json") as tmp:
+            Path(tmp).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+
+    @classmethod
+    def load(cls, folder, library=None) -> "ReactionModel":
+        """Read a model written by :meth:`save`; with ``library``, check it is the model's library."""
+        import skops.io as sio
+
+        folder = Path(folder)
+        try:
+            meta = json.loads((folder / "model.json").read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as e:
+            raise FileFormatError(f"cannot read model description: {e}", folder / "model.json") from None
+        if meta.get("format") != FORMAT or meta.get("kind") not in FEATURE_SETS:
+            raise FileFormatError(f"not a kinodyn response model (format {meta.get('format')!r})", folder)
+        path = folder / "model.skops"
+        try:
+            untrusted = sio.get_untrusted_types(file=path)
+        except Exception as e:  # skops raises several kinds for a damaged file
+            raise FileFormatError(f"cannot read model: {e}", path) from None
+        bad = [t for t in untrusted if not t.startswith(_TRUSTED_PREFIXES)]
+        if bad:
+            raise FileFormatError(f"model file holds types outside scikit-learn and numpy: {bad}", path)
+        model = cls(sio.load(path, trusted=untrusted), meta["kind"], tuple(meta["clips"]), meta["library"],
+                    meta.get("info", {}))
+        if library is not None:
+            model.check_library(library)
+        return model
+
+
+def train(x: np.ndarray, y: np.ndarray, kind: str, library, *, folds: int = 3, seed: int = 0,
+          grid: dict | None = None) -> ReactionModel:
+    """Fit the classifier on features ``x (N, n)`` and exhaustive labels ``y (N,)`` (clip indices into
+    ``library``), choosing the grid's parameters by ``folds``-fold cross-validation."""
+    from sklearn.model_selection import GridSearchCV, StratifiedKFold
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVC
+
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.int64)
+    if x.ndim != 2 or len(x) != len(y) or len(x) == 0:
+        raise ParameterError(f"x must be (N, n) and y (N,) with N > 0, got {x.shape} and {y.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ParameterError("features hold non-finite values; drop the failed cases first")
+    if y.min() < 0 or y.max() >= len(library):
+        raise ParameterError(f"labels must be clip indices in [0, {len(library)}), got [{y.min()}, {y.max()}]")
+    counts = np.bincount(y)
+    folds = int(max(2, min(folds, counts[counts > 0].min())))
+    pipe = make_pipeline(StandardScaler(), SVC(kernel="poly", gamma="scale", probability=True, random_state=seed))
+    search = GridSearchCV(pipe, grid or GRID, cv=StratifiedKFold(folds, shuffle=True, random_state=seed),
+                          n_jobs=1)
+    search.fit(x, y)
+    info = {"cases": int(len(x)), "cv_accuracy": float(search.best_score_), "folds": folds,
+            "params": {k: (float(v) if isinstance(v, (int, float)) else v) for k, v in search.best_params_.items()}}
+    return ReactionModel(search.best_estimator_, kind, tuple(library.names), library.signature(), info)

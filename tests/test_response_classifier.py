@@ -1,0 +1,108 @@
+"""Reaction classifier, features and training data (dynamic response, sections 4 and 7.2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinodyn.data import library as data
+from kinodyn.errors import FileFormatError, ParameterError
+from kinodyn.response import builtin, from_motions
+from kinodyn.response.classifier import ReactionModel, train
+from kinodyn.response.dataset import Dataset, ball_for, generate
+from kinodyn.response.features import feature_names, features
+from kinodyn.response.pipeline import observe
+
+pytest.importorskip("sklearn")
+pytest.importorskip("skops")
+
+
+@pytest.fixture(scope="module")
+def lib():
+    return builtin()
+
+
+@pytest.fixture(scope="module")
+def small_set():
+    return generate(6, seed=3, workers=1, chunk_size=3, show_progress=False)
+
+
+def _blobs(rng, k=3, n=60, dim=20):
+    centres = rng.normal(scale=3.0, size=(k, dim))
+    y = rng.integers(k, size=n)
+    return centres[y] + rng.normal(size=(n, dim)), y
+
+
+def test_feature_vectors_have_their_documented_sizes(small_set):
+    assert small_set.large.shape == (6, 198) and small_set.small.shape == (6, 20)
+    assert len(feature_names("large")) == 198 and len(feature_names("small")) == 20
+    assert np.all(np.isfinite(small_set.large[small_set.valid()]))
+
+
+def test_features_do_not_depend_on_where_the_character_faces():
+    walk = data.load("walk")
+    ball = ball_for(0, 1)
+    a = observe(walk, ball)
+    turned = walk.transformed([1.0, -2.0, 1.1])
+    b = observe(turned, ball.__class__(**{**ball.__dict__, "direction": ball.direction + 1.1}))
+    # The 0.0 and 0.1 s slices (the simulation itself drifts apart in contact by 0.2 s).
+    for kind, n in (("large", 132), ("small", 8)):
+        np.testing.assert_allclose(features(a.states, kind)[:n], features(b.states, kind)[:n], atol=0.05,
+                                   err_msg=kind)
+
+
+def test_dataset_is_the_same_for_one_and_two_workers(small_set, tmp_path):
+    two = generate(6, seed=3, workers=2, chunk_size=3, show_progress=False)
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "ball"):
+        np.testing.assert_array_equal(getattr(small_set, k), getattr(two, k), err_msg=k)
+    small_set.save(tmp_path / "d.npz")
+    back = Dataset.load(tmp_path / "d.npz")
+    np.testing.assert_array_equal(back.large, small_set.large)
+    assert back.meta == small_set.meta
+    with pytest.raises(FileFormatError):
+        np.savez(tmp_path / "other.npz", meta=np.array('{"format": "x"}'))
+        Dataset.load(tmp_path / "other.npz")
+
+
+def test_dataset_is_the_same_from_the_ray_backend(small_set):
+    ray = pytest.importorskip("ray")
+    try:
+        remote = generate(6, seed=3, workers=2, chunk_size=3, backend="ray", show_progress=False)
+    finally:
+        ray.shutdown()
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "ball"):
+        np.testing.assert_array_equal(getattr(small_set, k), getattr(remote, k), err_msg=k)
+
+
+def test_saved_model_reloads_and_predicts_identically(rng, lib, tmp_path):
+    x, y = _blobs(rng)
+    model = train(x, y, "small", lib, folds=3)
+    assert model.info["cv_accuracy"] > 0.9
+    model.save(tmp_path / "m")
+    back = ReactionModel.load(tmp_path / "m", lib)
+    xt, _ = _blobs(np.random.default_rng(9))
+    np.testing.assert_array_equal(back.predict_features(xt), model.predict_features(xt))
+    np.testing.assert_allclose(back.probabilities(xt), model.probabilities(xt), atol=1e-12)
+    assert back.probabilities(xt).shape == (len(xt), len(lib))
+
+
+def test_a_model_for_another_library_is_rejected(rng, lib, tmp_path):
+    x, y = _blobs(rng)
+    train(x, y, "small", lib).save(tmp_path / "m")
+    other = from_motions([data.load("flinch_front"), data.load("steps_back")])
+    with pytest.raises(ParameterError, match="another reaction library"):
+        ReactionModel.load(tmp_path / "m", other)
+    (tmp_path / "m" / "model.json").write_text("{}")
+    with pytest.raises(FileFormatError):
+        ReactionModel.load(tmp_path / "m")
+
+
+def test_training_rejects_bad_input(lib):
+    with pytest.raises(ParameterError):
+        train(np.zeros((4, 3)), np.array([0, 1, 0, 99]), "small", lib)
+    with pytest.raises(ParameterError):
+        train(np.full((4, 3), np.nan), np.array([0, 1, 0, 1]), "small", lib)
+    with pytest.raises(ParameterError):
+        features((), "large")
+    with pytest.raises(ParameterError):
+        features((None, None, None), "medium")
