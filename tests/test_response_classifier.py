@@ -45,8 +45,10 @@ def test_features_do_not_depend_on_where_the_character_faces():
     a = observe(walk, ball)
     turned = walk.transformed([1.0, -2.0, 1.1])
     b = observe(turned, ball.__class__(**{**ball.__dict__, "direction": ball.direction + 1.1}))
-    # The 0.0 and 0.1 s slices (the simulation itself drifts apart in contact by 0.2 s).
-    for kind, n in (("large", 132), ("small", 8)):
+    # The 0.0 s slice: the same state seen from another heading and place. (Later slices come from the
+    # simulation, which drifts apart in contact within 0.1 s since kinematic playback keeps its servo
+    # targets current: 0.34 at 0.1 s.)
+    for kind, n in (("large", 66), ("small", 4)):
         np.testing.assert_allclose(features(a.states, kind)[:n], features(b.states, kind)[:n], atol=0.05,
                                    err_msg=kind)
 

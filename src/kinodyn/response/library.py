@@ -5,7 +5,7 @@ The built-in library holds the project's reaction clips (:mod:`kinodyn.data.libr
 forward, backward and to the side, and upper-body flinches from the front, the side and the back. Any
 folder of BVH clips can replace it (:func:`from_folder`); the clips are resampled to one frame rate.
 
-A :class:`ReactionLibrary` packs the clips (:class:`kinodyn.io.library.ClipDatabase`, starts/stops) and
+A :class:`ReactionLibrary` packs the clips (:class:`kinodyn.clips.ClipStore`, starts/stops) and
 precomputes the ground-aligned windows of the search (:func:`kinodyn.response.search.windows`) once.
 """
 
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kinodyn.clips import ClipStore
 from kinodyn.errors import MotionError, ParameterError
-from kinodyn.io.library import ClipDatabase
 from kinodyn.motion import Motion
 from kinodyn.response.search import SearchConfig, Windows, body_tracks, body_weights, windows
 
@@ -29,7 +29,7 @@ class ReactionLibrary:
     """Reaction clips of one skeleton, packed, with their search windows.
 
     Attributes:
-        clips: the packed clips (:class:`ClipDatabase`).
+        clips: the packed clips (:class:`~kinodyn.clips.ClipStore`, all at one frame rate).
         config: the search parameters the windows were made with.
         windows: every clip's windows, one clip after another (:class:`Windows`, ``N`` rows).
         rows: ``(K, 2)`` first and one-past-last window row of each clip.
@@ -37,7 +37,7 @@ class ReactionLibrary:
         tracks: per clip, its body tracks ``(pos (F, J, 3), rot (F, J, 4))``.
     """
 
-    clips: ClipDatabase
+    clips: ClipStore
     config: SearchConfig
     windows: Windows
     rows: np.ndarray
@@ -57,14 +57,14 @@ class ReactionLibrary:
 
     @property
     def fps(self) -> float:
-        return self.clips.fps
+        return float(self.clips.fps[0])
 
     @property
     def window(self) -> int:
         return self.config.window(self.fps)
 
     def clip(self, k: int | str) -> Motion:
-        return self.clips.clip(k)
+        return self.clips.motion(k)
 
     def signature(self) -> str:
         """A short text naming the clips and skeleton, stored with trained models to catch a mismatch."""
@@ -75,11 +75,15 @@ def from_motions(motions: list[Motion], config: SearchConfig = SearchConfig(), t
     """A library of ``motions`` (same skeleton and fps, unique names; at least one clip)."""
     if not motions:
         raise ParameterError("a reaction library needs at least one clip, got none")
-    db = ClipDatabase.from_motions(list(motions), tags)
-    w = config.window(db.fps)
+    rates = {float(m.fps) for m in motions}
+    if len(rates) > 1:
+        raise MotionError(f"the clips of a reaction library must share one frame rate, got {sorted(rates)} fps")
+    db = ClipStore.from_motions(list(motions), tags=tags)
+    fps = rates.pop()
+    w = config.window(fps)
     tracks, parts, rows, start = [], [], [], 0
     for k in range(len(db)):
-        pos, rot = body_tracks(db.clip(k))
+        pos, rot = body_tracks(db.motion(k))
         tracks.append((pos, rot))
         win = windows(pos, rot, w)
         parts.append(win)
@@ -90,7 +94,7 @@ def from_motions(motions: list[Motion], config: SearchConfig = SearchConfig(), t
     packed = Windows(np.concatenate([p.pos for p in parts]), np.concatenate([p.rot for p in parts]),
                      np.concatenate([p.ground for p in parts]))
     wp, wt = body_weights(db.skeleton.names, config)
-    return ReactionLibrary(db, config, packed, np.array(rows, dtype=np.int64), (wp, wt, config.frame_weights(db.fps)),
+    return ReactionLibrary(db, config, packed, np.array(rows, dtype=np.int64), (wp, wt, config.frame_weights(fps)),
                            tuple(tracks))
 
 
