@@ -1,4 +1,5 @@
-"""Shared fixtures: the real motion-capture folder (tests that need it skip cleanly without it)."""
+"""Shared fixtures: the real motion-capture folder (tests that need it skip cleanly without it), the
+built-in clip store with its support phases, and the MuJoCo body of the built-in humanoid."""
 
 from __future__ import annotations
 
@@ -26,3 +27,20 @@ def mocap_dir() -> Path:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="module")
+def body():
+    """The physics body (:class:`kinodyn.physics.body.CharacterBody`) of the built-in humanoid."""
+    from kinodyn.data.skeleton import humanoid
+    from kinodyn.physics.body import build_body
+
+    return build_body(humanoid())
+
+
+@pytest.fixture(scope="session")
+def clip_store():
+    """Every built-in clip in one :class:`kinodyn.clips.ClipStore`, with support phases (frozen, shared)."""
+    from kinodyn.blend.library import builtin
+
+    return builtin()

@@ -121,3 +121,19 @@ def test_rejects_bad_inputs_and_bad_files(tmp_path, rng):
         clips.load(bad)
     with pytest.raises(ParameterError, match="empty"):
         ClipStore.empty(motions[0].skeleton).sample(np.zeros(1, int), np.zeros(1))
+
+
+def test_the_builtin_store_holds_every_builtin_clip_with_its_support(clip_store):
+    """The shared store (conftest) has every built-in clip, as loaded, looped where the library says so,
+    and each looped clip has a support-phase sequence."""
+    from kinodyn.data import library as data
+
+    assert clip_store.names == tuple(data.names())
+    for name in ("walk", "run", "kick"):
+        k = clip_store.index(name)
+        m = data.load(name)
+        assert clip_store.cyclic(name) == data.info(name).cyclic
+        if not clip_store.cyclic(name):  # looped clips are closed at their loop point on the way in
+            np.testing.assert_allclose(clip_store.motion(k).local_rot, m.local_rot, atol=1e-12, err_msg=name)
+    for k in np.nonzero(clip_store.is_cyclic)[0]:
+        assert clip_store.seq_offsets[k + 1] > clip_store.seq_offsets[k], clip_store.names[k]

@@ -8,19 +8,12 @@ import pytest
 mujoco = pytest.importorskip("mujoco")
 
 from kinodyn.data import library
-from kinodyn.data.skeleton import humanoid
 from kinodyn.errors import ParameterError
-from kinodyn.physics.body import build_body
 from kinodyn.physics.impacts import launch
 from kinodyn.physics.world import World
 
 #: the issue's bound on momentum transfer (ball's loss vs the body's gain)
 _MOMENTUM_TOL = 0.10
-
-
-@pytest.fixture(scope="module")
-def body():
-    return build_body(humanoid())
 
 
 @pytest.mark.parametrize("speed,direction,height", [(8.0, 0.0, 1.5), (15.0, 2.0, 0.5), (5.0, -1.0, 2.5)])

@@ -8,16 +8,9 @@ import pytest
 mujoco = pytest.importorskip("mujoco")
 
 from kinodyn.data import library
-from kinodyn.data.skeleton import humanoid
 from kinodyn.errors import ParameterError, SimulationDivergedError, SimulationError
 from kinodyn.physics import rollout as R
-from kinodyn.physics.body import build_body
 from kinodyn.physics.world import World
-
-
-@pytest.fixture(scope="module")
-def body():
-    return build_body(humanoid())
 
 
 def _walking_world(body):

@@ -21,11 +21,6 @@ _TRACK_MEAN_DEG = 2.0
 _TRACK_MAX_DEG = 20.0
 
 
-@pytest.fixture(scope="module")
-def body():
-    return build_body(humanoid())
-
-
 def test_gains_are_inertia_scaled(body):
     cfg = tracking.PDConfig()
     inertia = tracking.subtree_inertia(body.model(), body.map)[body.map.actuated]

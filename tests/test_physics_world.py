@@ -11,18 +11,12 @@ from kinodyn.data import library
 from kinodyn.data.skeleton import humanoid
 from kinodyn.errors import MotionError, ParameterError, SimulationDivergedError, SimulationError
 from kinodyn.math import quat
-from kinodyn.physics.body import build_body
 from kinodyn.physics.state import character_state
 from kinodyn.physics.world import World, step_parallel
 from kinodyn.skeleton import Skeleton
 
 #: relative velocity change allowed across a kinematic -> dynamic switch (the issue's 5 %)
 _SWITCH_VEL_TOL = 0.05
-
-
-@pytest.fixture(scope="module")
-def body():
-    return build_body(humanoid())
 
 
 @pytest.fixture(scope="module")
