@@ -82,6 +82,9 @@ class Actor:
         ghost: draw it translucent, as a reference the others are compared with.
         loop: after its last frame the clip starts again (``True``) or holds its last pose (``False``);
             ``None`` takes ``build_world``'s ``loop_clips``.
+        highlight: ``(F, J)`` bool, or ``None``: in frame ``f`` the segment carried by joint ``j`` (the
+            bones from ``j`` to its children and end sites) is drawn in
+            :data:`kinodyn.plotting.style.HIGHLIGHT_COLOR` (segments inside an obstacle, say).
     """
 
     motion: Motion
@@ -90,6 +93,7 @@ class Actor:
     start: float = 0.0
     ghost: bool = False
     loop: bool | None = None
+    highlight: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -180,6 +184,7 @@ class Character:
         face: ``{"head": i, "left": j, "right": k}`` points that say where the head faces, or ``{}``.
         point_names: ``P`` names of the points (joints, then ``<joint>_end`` end sites).
         loop: the clip plays again after its last frame (else its last pose is held).
+        highlight: ``(F, P)`` bool, the bone ending at each point drawn highlighted, or ``None``.
     """
 
     name: str
@@ -197,6 +202,7 @@ class Character:
     face: dict = field(default_factory=dict)
     point_names: tuple[str, ...] = ()
     loop: bool = False
+    highlight: np.ndarray | None = None
 
     @property
     def num_frames(self) -> int:
@@ -363,7 +369,7 @@ def _actors(motions, names, colors) -> list[Actor]:
     out = []
     for i, a in enumerate(acts):
         nm = (names[i] if names is not None else None) or a.name or a.motion.name or f"character {i + 1}"
-        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost), a.loop))
+        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost), a.loop, a.highlight))
     return out
 
 
@@ -410,6 +416,21 @@ def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> l
         cx = xs[c] + 0.5 * width[c] - 0.5 * (lo[0] + hi[0]) - 0.5 * xs[-1]
         cy = ys[-1] - ys[r] - 0.5 * depth[r] - 0.5 * (lo[1] + hi[1]) - 0.5 * ys[-1]  # row 0 at the back
         out.append(b + np.array([cx, cy, 0.0]))
+    return out
+
+
+def _point_highlight(a: Actor, i: int, parents: np.ndarray) -> np.ndarray | None:
+    """``(F, P)`` highlight of the bone ending at each point, from an actor's ``(F, J)`` per joint."""
+    if a.highlight is None:
+        return None
+    h = np.asarray(a.highlight)
+    f, j = a.motion.num_frames, a.motion.num_joints
+    if h.shape != (f, j) or h.dtype != bool:
+        raise ParameterError(f"highlight of character {i} must be a bool array of shape ({f}, {j}), got "
+                             f"{h.dtype} {h.shape}")
+    out = np.zeros((f, len(parents)), dtype=bool)
+    child = np.nonzero(parents >= 0)[0]
+    out[:, child] = h[:, parents[child]]
     return out
 
 
@@ -529,7 +550,7 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         sides = point_sides(pnames)
         chars.append(Character(a.name, a.color, m.fps, a.start, pos + off, parents, radii, m.num_joints,
                                _feet_points(m), lab, a.ghost, sides, face_points(pnames, sides, pos), tuple(pnames),
-                               bool(loop_clips if a.loop is None else a.loop)))
+                               bool(loop_clips if a.loop is None else a.loop), _point_highlight(a, i, parents)))
         if "phases" in auto and lab is not None and not any(p.character == i for p in phases):
             phases.append(Phases(support_phases(lab, m.fps, a.start), f"{a.name} support", i))
     fps = max(c.fps for c in chars)
