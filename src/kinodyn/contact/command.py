@@ -2,8 +2,9 @@
 
 ``kinodyn contact run SCENARIO -o out/ [--html] [--png N]`` simulates a shipped scenario (or a scene
 file) and writes the avatar's resolved motion (BVH), the objects' trajectories (NPZ + JSON names), a
-per-frame timing report (CSV) and a summary (JSON); ``--html`` adds the viewer page (the resolved and
-tracked avatar), ``--png N`` N rendered frames. ``kinodyn contact fix MOTION --scene S.yaml -o
+per-frame timing report (CSV) and a summary (JSON); ``--html`` adds the viewer page (the scene's
+objects on their trajectories, the resolved avatar, the tracked one as a reference with its segments
+inside obstacles in red, contact normals as arrows: :func:`write_page`), ``--png N`` N rendered frames. ``kinodyn contact fix MOTION --scene S.yaml -o
 fixed.bvh`` resolves every frame of a clip against a scene's fixed objects and the avatar itself and
 reports what changed per frame. ``kinodyn contact list`` names the scenarios.
 """
@@ -118,17 +119,16 @@ def _run(args) -> int:
 
 
 _KIND_COLOURS = {"fixed": "#b8b4ab", "simulated": "#f28c28", "driven": "#5b8ce6"}
-_HOT = "#d62728"
 
 
-def scene_props(scene, result) -> list:
+def scene_props(scene, result, unlabelled=()) -> list:
     """The run's objects as viewer props (:class:`kinodyn.viz.objects.Prop`): fixed ones grey and
     translucent (walls do not hide the avatar), simulated ones orange (with the path of their centre),
-    the hand blue."""
+    the hand blue. Objects named in ``unlabelled`` are left out of the legend."""
     from kinodyn.contact.display import shape_tracks
     from kinodyn.viz.objects import Prop
 
-    props, labelled = [], set()
+    props, labelled = [], set(unlabelled)
     for t in shape_tracks(scene, result):
         size = {"box": t.size, "sphere": t.size[:1], "capsule": t.size[:2]}.get(t.shape, (0.1,))
         owner = t.name.split("/")[0]
@@ -163,15 +163,16 @@ def write_page(path, scene, result, margin: float = 0.01):
     from kinodyn.contact.display import contact_normals, penetrating_joints
     from kinodyn.viz import html
 
-    overlays = [*scene_props(scene, result)]
     if result.motion is None:
-        return html.write(path, _focus(scene, result), overlays, title=scene.name)
+        focus = _focus(scene, result)  # it names its object in the legend
+        return html.write(path, focus, scene_props(scene, result, [focus.name]), title=scene.name)
+    overlays = scene_props(scene, result)
     frames, points, normals = contact_normals(result.motion, scene, margin)
     if len(frames):
         # each arrow ends at the contact point, coming from the avatar's side: the push the
         # obstacle takes; its normal is the reverse
         overlays.append(html.Forces(frames / result.fps, points, -normals * 0.15, scale=1.0,
-                                    hold=1.0 / result.fps, color=_HOT, label="contact normals"))
+                                    hold=1.0 / result.fps, label="contact normals"))
     hot = penetrating_joints(result.tracked, scene)
     actors = [html.Actor(result.motion, "resolved"),
               html.Actor(result.tracked, "tracked", ghost=True, highlight=hot)]
