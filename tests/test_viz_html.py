@@ -271,3 +271,13 @@ def test_prop_opacity_reaches_the_page_and_is_checked(walk):
     assert data["scenes"][0]["props"][0]["opacity"] == 0.35
     with pytest.raises(ParameterError, match=r"opacity must be in \(0, 1\]"):
         html.to_html(walk, [Prop("box", (0, 0, 1), (1, 1, 1), opacity=0.0)])
+
+
+def test_lanes_overlay_a_reference_on_the_first_lane(walk, run_clip):
+    """Solid characters get lanes side by side; a ghost shares the first one's lane (a comparison)."""
+    w = world.build_world([walk, run_clip, Actor(walk, "ref", ghost=True)], None, layout="lanes")
+    roots = [c.positions[0, 0] for c in w.characters]
+    assert abs(roots[0][1] - roots[1][1]) > 0.5  # walking along X: lanes apart in Y
+    assert_allclose(roots[2], roots[0], atol=1e-9)  # the reference on the walk's lane, where it starts
+    alone = world.build_world([walk, run_clip], None, layout="lanes")
+    assert_allclose([c.positions[0, 0] for c in alone.characters], roots[:2], atol=1e-9)

@@ -42,6 +42,7 @@ from kinodyn.viz.objects import (
     lane_offsets,
     lane_view,
     point_sides,
+    travel_direction,
 )
 
 __all__ = [
@@ -419,6 +420,19 @@ def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> l
     return out
 
 
+def _lanes(ghost: list[bool], chars: list[np.ndarray]) -> list[np.ndarray]:
+    """Lanes for the characters drawn solid; references (ghosts) are overlaid on the first one's lane,
+    their first root moved across the direction of travel onto its first root."""
+    if all(ghost) or not any(ghost):
+        return lane_offsets(chars)
+    solid = [p for p, g in zip(chars, ghost) if not g]
+    offs = lane_offsets(solid)
+    lanes = iter(offs)
+    d = travel_direction(solid)
+    n = np.array([d[1], -d[0], 0.0])
+    return [offs[0] + ((solid[0][0, 0] - p[0, 0]) @ n) * n if g else next(lanes) for p, g in zip(chars, ghost)]
+
+
 def _point_highlight(a: Actor, i: int, parents: np.ndarray) -> np.ndarray | None:
     """``(F, P)`` highlight of the bone ending at each point, from an actor's ``(F, J)`` per joint."""
     if a.highlight is None:
@@ -505,7 +519,8 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
             root position moved to its slot), ``"grid"`` (rows and columns), for clip galleries; or
             ``"lanes"`` (side by side across the direction of travel, for comparing movers:
-            :func:`kinodyn.viz.objects.lane_offsets`).
+            :func:`kinodyn.viz.objects.lane_offsets`; references, ``Actor(ghost=True)``, are overlaid on
+            the first solid character's lane).
         name: scene name.
         loop_clips: clips shorter than the scene start again after their last frame (else they hold
             their last pose); an :class:`Actor`'s ``loop`` overrides it.
@@ -530,7 +545,8 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         pos_list.append(pos)
         radii = bone_radii(pnames, parents, a.motion.skeleton.height())
         prepared.append((pos, parents, radii, pnames))
-    offsets = lane_offsets(pos_list) if layout == "lanes" else _layout_offsets(pos_list, layout)
+    offsets = (_lanes([a.ghost for a in actors], pos_list) if layout == "lanes"
+               else _layout_offsets(pos_list, layout))
     chars = []
     for i, (a, (pos, parents, radii, pnames), off) in enumerate(zip(actors, prepared, offsets)):
         m = a.motion
