@@ -142,3 +142,14 @@ def test_the_page_colours_the_tracked_segments_inside_the_wall(tmp_path, two_arm
         assert next(c for c in s["characters"] if c["name"] == "tracked")["hot"] == 0
         red_out = red_pixels(drv)
     assert red_in > red_out + 100
+
+
+def test_arms_crossing_through_each_other_are_marked_as_self_collision():
+    scene = load_scene(scenario_path("self_collision"))
+    result = run_scene(scene, frames=90)
+    own = penetrating_joints(result.tracked, scene)
+    assert not penetrating_joints(result.tracked, scene, self_collision=False).any()  # no wall near
+    names = result.tracked.skeleton.names
+    marked = {names[j] for j in np.nonzero(own.any(axis=0))[0]}
+    assert {"LeftForeArm", "RightForeArm"} & marked
+    assert penetrating_joints(result.motion, scene).sum() < own.sum()  # resolution removes most of it

@@ -119,18 +119,27 @@ def _avatar_world(scene, skeleton):
     return avatar, world, first
 
 
-def penetrating_joints(motion, scene, tolerance: float = 1e-3) -> np.ndarray:
-    """``(F, J)`` bool: the segment carried by joint ``j`` overlaps a fixed object of ``scene`` by more
-    than ``tolerance`` (m) in frame ``f`` of ``motion`` (the motion as given, unresolved)."""
+def penetrating_joints(motion, scene, tolerance: float = 1e-3, self_collision: bool | None = None) -> np.ndarray:
+    """``(F, J)`` bool: the segment carried by joint ``j`` overlaps a fixed object of ``scene`` (or,
+    with ``self_collision``, another segment it may touch: arm through arm or torso) by more than
+    ``tolerance`` (m) in frame ``f`` of ``motion`` (the motion as given, unresolved).
+    ``self_collision=None`` takes the scene avatar's setting (on without an avatar entry)."""
+    if self_collision is None:
+        self_collision = scene.avatar.self_collision if scene.avatar is not None else True
     avatar, world, first = _avatar_world(scene, motion.skeleton)
     objs = np.arange(len(avatar.segments)) + first
     out = np.zeros((motion.num_frames, motion.skeleton.num_joints), dtype=bool)
     for f in range(motion.num_frames):
         world.set_poses(objs, *segment_poses(avatar, motion.root_pos[f], motion.local_rot[f]))
         c = world.contacts(objs)
+        deep = c.depth > tolerance
+        fixed = (c.object_a < first) | (c.object_b < first)
         seg = np.where(c.object_a >= first, c.object_a, c.object_b) - first
-        hit = ((c.object_a < first) | (c.object_b < first)) & (c.depth > tolerance)
-        out[f, avatar.segment_joint[seg[hit]]] = True
+        out[f, avatar.segment_joint[seg[deep & fixed]]] = True
+        if self_collision:
+            own = deep & ~fixed
+            out[f, avatar.segment_joint[c.object_a[own] - first]] = True
+            out[f, avatar.segment_joint[c.object_b[own] - first]] = True
     return out
 
 
