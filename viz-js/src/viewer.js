@@ -558,7 +558,8 @@ class Character {
     const marks = world.marks;
     // Blob shadow under the root, shrinking with height above the floor.
     const rz = cur[2] - world.floor;
-    if (!this.ghost) marks.shadow(cur[0], cur[1], world.floor + 0.003, 0.3 * Math.max(0.4, 1.2 - 0.35 * Math.max(rz - 0.9, 0)));
+    // (none for references, nor for a one-point marker without bones: the object it rides casts its own)
+    if (!this.ghost && this.bones.length) marks.shadow(cur[0], cur[1], world.floor + 0.003, 0.3 * Math.max(0.4, 1.2 - 0.35 * Math.max(rz - 0.9, 0)));
     // Nose: which way the head faces (up x (right - left)), at the front of the head.
     const face = this.spec.face;
     if (face && face.left !== undefined && !this.ghost) {
