@@ -239,3 +239,45 @@ def test_write_is_atomic_on_error(tmp_path, walk):
         html.write(target, walk, overlays=["nope"])
     assert target.read_text() == "previous"
     assert [p.name for p in tmp_path.iterdir()] == ["page.html"]
+
+
+def _bytes(block) -> np.ndarray:
+    raw = base64.b64decode(block["data"])
+    return np.frombuffer(zlib.decompress(raw) if block["enc"].endswith("z") else raw, dtype=np.uint8)
+
+
+def test_a_highlighted_joint_marks_the_bones_of_its_segment(walk):
+    """A joint's segment runs from it to its children and end sites: those bones, and only those,
+    are marked in the frames given."""
+    sk = walk.skeleton
+    hot = np.zeros((walk.num_frames, sk.num_joints), dtype=bool)
+    arm = sk.index("LeftForeArm")
+    hot[10:20, arm] = True
+    data = page_data(html.to_html(Actor(walk, highlight=hot), None))
+    (c,) = data["scenes"][0]["characters"]
+    marks = _bytes(c["hot"]).reshape(c["frames"], len(c["parents"]))
+    parents = np.array(c["parents"])
+    assert np.array_equal(np.nonzero(marks.any(axis=0))[0], np.nonzero(parents == arm)[0])
+    assert np.array_equal(np.nonzero(marks.any(axis=1))[0], np.arange(10, 20))
+    assert page_data(html.to_html(walk, None))["scenes"][0]["characters"][0]["hot"] is None
+    with pytest.raises(ParameterError, match=r"highlight of character 0 must be a bool array of shape"):
+        world.build_world(Actor(walk, highlight=hot[:5]), None)
+
+
+def test_prop_opacity_reaches_the_page_and_is_checked(walk):
+    from kinodyn.viz.objects import Prop
+
+    data = page_data(html.to_html(walk, [Prop("box", (0, 0, 1), (1, 1, 1), opacity=0.35)]))
+    assert data["scenes"][0]["props"][0]["opacity"] == 0.35
+    with pytest.raises(ParameterError, match=r"opacity must be in \(0, 1\]"):
+        html.to_html(walk, [Prop("box", (0, 0, 1), (1, 1, 1), opacity=0.0)])
+
+
+def test_lanes_overlay_a_reference_on_the_first_lane(walk, run_clip):
+    """Solid characters get lanes side by side; a ghost shares the first one's lane (a comparison)."""
+    w = world.build_world([walk, run_clip, Actor(walk, "ref", ghost=True)], None, layout="lanes")
+    roots = [c.positions[0, 0] for c in w.characters]
+    assert abs(roots[0][1] - roots[1][1]) > 0.5  # walking along X: lanes apart in Y
+    assert_allclose(roots[2], roots[0], atol=1e-9)  # the reference on the walk's lane, where it starts
+    alone = world.build_world([walk, run_clip], None, layout="lanes")
+    assert_allclose([c.positions[0, 0] for c in alone.characters], roots[:2], atol=1e-9)

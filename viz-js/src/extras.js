@@ -59,8 +59,12 @@ export class Prop {
     this.spec = spec;
     this.pos = pos;
     this.F = spec.frames;
-    this.mesh = new THREE.Mesh(propGeometry(spec), software ? new THREE.MeshLambertMaterial({ color: spec.color })
-      : new THREE.MeshStandardMaterial({ color: spec.color, roughness: 0.6, metalness: 0.05 }));
+    // Translucent objects (the walls of a room) let the characters behind them show.
+    const see = spec.opacity !== undefined && spec.opacity < 1
+      ? { transparent: true, opacity: spec.opacity, depthWrite: false } : {};
+    this.mesh = new THREE.Mesh(propGeometry(spec), software ? new THREE.MeshLambertMaterial({ color: spec.color, ...see })
+      : new THREE.MeshStandardMaterial({ color: spec.color, roughness: 0.6, metalness: 0.05, ...see }));
+    if (see.transparent) this.mesh.renderOrder = 6;
     this.mesh.name = `prop ${spec.label || spec.shape}`;
     this.shadow = null;
     this.group = new THREE.Group();
@@ -74,10 +78,12 @@ export class Prop {
       this.trail.frustumCulled = false;
       this.group.add(this.trail);
     }
+    // A blob shadow under objects that move (still ones stand where they are: walls, tables).
     const r = spec.shape === 'box' ? Math.max(spec.size[0], spec.size[1]) : spec.size[0] || 0.1;
     this.shadow = new THREE.Mesh(new THREE.CircleGeometry(r, 24),
       new THREE.MeshBasicMaterial({ color: 0x000000, transparent: true, opacity: 0.16, depthWrite: false }));
     this.shadow.renderOrder = 1;
+    this.shadow.visible = this.F > 1;
     this.group.add(this.shadow);
     this.floor = floor;
     this.current = new THREE.Vector3();

@@ -210,7 +210,9 @@ function capsuleTemplate(S, H) {
 
 const CAPSULE_PARS = `
 uniform sampler2D kdBones;
+uniform vec3 kdHot;
 attribute vec2 kdBone;
+varying float kdHotV;
 `;
 // Bone i is at texels (2 (i % BONE_ROW), i / BONE_ROW) and the next one: the texture stays within
 // every GPU's size limit for thousands of characters.
@@ -227,14 +229,23 @@ vec3 kdX = normalize( cross( abs( kdY.z ) < 0.9 ? vec3( 0.0, 0.0, 1.0 ) : vec3( 
 vec3 kdZ = cross( kdX, kdY );
 vec3 objectNormal = kdX * normal.x + kdY * normal.y + kdZ * normal.z;
 `;
+// kdB.w: the bone is highlighted (a segment inside an obstacle): drawn in kdHot, nearly opaque.
 const CAPSULE_POSITION = `
 vec3 transformed = ( kdBone.y > 0.5 ? kdB.xyz : kdA.xyz ) + kdA.w * objectNormal;
+kdHotV = kdB.w;
+#ifdef USE_COLOR
+vColor.xyz = mix( vColor.xyz, kdHot, kdB.w );
+#endif
+`;
+const CAPSULE_FRAGMENT = `
+#include <color_fragment>
+diffuseColor.a = mix( diffuseColor.a, 0.85, kdHotV );
 `;
 
 class Bodies {
   // chars: [{bones: [joint index], spec}] in slot order. ghost: drawn translucent (references).
   // Left bones are drawn lighter and right bones darker than the character's colour.
-  constructor(chars, software, ghost = false) {
+  constructor(chars, software, ghost = false, hot = '#e8112d') {
     const temps = CAPSULE_LODS.map((l) => capsuleTemplate(l.S, l.H));
     const n = Math.max(chars.reduce((k, ch) => k + ch.bones.length, 0), 1);
     const rows = Math.ceil(n / BONE_ROW);
@@ -286,13 +297,17 @@ class Bodies {
       : { color: 0xffffff, vertexColors: true };
     const mat = software ? new THREE.MeshLambertMaterial(opts)
       : new THREE.MeshStandardMaterial({ ...opts, roughness: 0.55, metalness: 0.05 });
-    const texture = this.texture;
+    const texture = this.texture, hotColor = colorOf(hot);
     mat.onBeforeCompile = (shader) => {
       shader.uniforms.kdBones = { value: texture };
+      shader.uniforms.kdHot = { value: hotColor };
       shader.vertexShader = shader.vertexShader
         .replace('#include <common>', `#include <common>\n${CAPSULE_PARS}`)
         .replace('#include <beginnormal_vertex>', CAPSULE_NORMAL)
         .replace('#include <begin_vertex>', CAPSULE_POSITION);
+      shader.fragmentShader = shader.fragmentShader
+        .replace('#include <common>', '#include <common>\nvarying float kdHotV;')
+        .replace('#include <color_fragment>', CAPSULE_FRAGMENT);
     };
     mat.customProgramCacheKey = () => 'kd-capsules';
     this.mesh = new THREE.Mesh(geo, [mat]);  // drawn by groups: the level of detail of each character
@@ -304,11 +319,13 @@ class Bodies {
   // Bone end points and radii of one character's current pose.
   write(ch, cur) {
     const d = this.data, par = ch.spec.parents, rad = ch.spec.radius;
+    const hot = ch.hot, h0 = hot ? Math.max(ch.frame || 0, 0) * ch.P : 0;
     let o = 8 * ch.slot;
     for (const p of ch.bones) {
       const q = par[p];
       d[o] = cur[3 * q]; d[o + 1] = cur[3 * q + 1]; d[o + 2] = cur[3 * q + 2]; d[o + 3] = rad[p];
       d[o + 4] = cur[3 * p]; d[o + 5] = cur[3 * p + 1]; d[o + 6] = cur[3 * p + 2];
+      d[o + 7] = hot ? hot[h0 + p] : 0;
       o += 8;
     }
   }
@@ -541,7 +558,8 @@ class Character {
     const marks = world.marks;
     // Blob shadow under the root, shrinking with height above the floor.
     const rz = cur[2] - world.floor;
-    if (!this.ghost) marks.shadow(cur[0], cur[1], world.floor + 0.003, 0.3 * Math.max(0.4, 1.2 - 0.35 * Math.max(rz - 0.9, 0)));
+    // (none for references, nor for a one-point marker without bones: the object it rides casts its own)
+    if (!this.ghost && this.bones.length) marks.shadow(cur[0], cur[1], world.floor + 0.003, 0.3 * Math.max(0.4, 1.2 - 0.35 * Math.max(rz - 0.9, 0)));
     // Nose: which way the head faces (up x (right - left)), at the front of the head.
     const face = this.spec.face;
     if (face && face.left !== undefined && !this.ghost) {
@@ -759,6 +777,7 @@ class Viewer {
       const pos = await decodePositions(c.pos, c.frames, c.parents.length);
       const contacts = c.contacts ? await decodeBytes(c.contacts) : null;
       const ch = new Character(c, pos, contacts, this.world, this.chars.length);
+      ch.hot = c.hot ? await decodeBytes(c.hot) : null;  // (F * P) highlighted bones
       this.chars.push(ch);
       this.sceneGroup.add(ch.group);
     }
@@ -796,10 +815,11 @@ class Viewer {
     }
     if (this.world.marks) { this.sceneGroup.remove(this.world.marks.group); this.world.marks.dispose(); }
     const solid = this.chars.filter((c) => !c.ghost), ghosts = this.chars.filter((c) => c.ghost);
-    this.world.bodies = new Bodies(solid, this.software);
+    const hot = this.data.highlightColor || '#e8112d';
+    this.world.bodies = new Bodies(solid, this.software, false, hot);
     this.sceneGroup.add(this.world.bodies.mesh);
     if (ghosts.length) {
-      this.world.ghosts = new Bodies(ghosts, this.software, true);
+      this.world.ghosts = new Bodies(ghosts, this.software, true, hot);
       this.sceneGroup.add(this.world.ghosts.mesh);
     }
     this.world.marks = new Marks(this.chars.length, this.world);
@@ -986,7 +1006,8 @@ class Viewer {
       if (this.opts.labels) need(ch.headTop.x, ch.headTop.y, ch.headTop.z + 0.12, 0.05);  // its name label
       need(ch.cur[0], ch.cur[1], this.world.floor, 0.05);  // the feet's shadow, the floor under them
     }
-    for (const pr of this.props || []) if (pr.visible) need(pr.current.x, pr.current.y, pr.current.z, pr.spec.size[0] || 0.1);
+    // Objects that move are kept in view (a ball in flight); still ones (walls, tables) need not be.
+    for (const pr of this.props || []) if (pr.visible && pr.F > 1) need(pr.current.x, pr.current.y, pr.current.z, pr.spec.size[0] || 0.1);
     return dist;
   }
 
@@ -1506,6 +1527,7 @@ function pageState(v) {
     camera: { position: v.camera.position.toArray(), target: v.controls.target.toArray(),
       ortho: v.activeCamera().isOrthographicCamera === true },
     characters: v.chars.map((ch) => ({ name: ch.spec.name, ghost: ch.ghost, frame: ch.frame, root: [ch.cur[0], ch.cur[1], ch.cur[2]],
+      hot: ch.hot ? ch.bones.filter((p) => ch.hot[Math.max(ch.frame || 0, 0) * ch.P + p]).length : 0,
       label: ch.label.style.display === 'none' ? null : ch.labelRect || null, dropped: !!ch.spec.dropped,
       com: ch.extras ? ch.extras.balance.c.toArray() : null, support: ch.extras ? ch.extras.balance.hull : null,
       comInside: ch.extras ? ch.extras.balance.inside : null })),

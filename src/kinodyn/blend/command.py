@@ -2,7 +2,8 @@
 
 The script lists actions (clips), their start and stop times and priorities (see
 :mod:`kinodyn.blend.script`). The blended motion is written as BVH (or NPZ by the file ending);
-``--html`` writes a viewer page beside it, ``--plots DIR`` the support-phase bars and time warps,
+``--html`` writes a viewer page beside it (support phases on, on the timeline under the scene),
+``--plots DIR`` the support-phase bars, time warps and foot heights and speeds,
 ``--no-sync`` blends without synchronization (the baseline) and ``--compare`` prints the foot sliding
 of both.
 """
@@ -20,7 +21,8 @@ def add_arguments(p) -> None:
     p.add_argument("script", help="YAML blend script (see examples/blend_fig12.yaml)")
     p.add_argument("-o", "--output", required=True, help="motion file to write (.bvh or .npz)")
     p.add_argument("--html", help="also write a viewer page (.html)")
-    p.add_argument("--plots", metavar="DIR", help="write support-phase and time-warp figures (PNG) to DIR")
+    p.add_argument("--plots", metavar="DIR",
+                   help="write support-phase, time-warp and foot height/speed figures (PNG) to DIR")
     p.add_argument("--no-sync", action="store_true", help="blend without synchronization (the baseline)")
     p.add_argument("--compare", action="store_true",
                    help="also blend without synchronization and print the foot sliding of both")
@@ -34,6 +36,23 @@ def _sliding_line(label, result) -> str:
     return (f"  {label:<22} sliding {f['sliding_cm_s']:6.2f} cm/s over {f['planted_frames']} frames the source "
             f"clips plant a foot, {f['transition_sliding_cm_s']:6.2f} cm/s in transitions; {f['err_frames']} frames "
             "mixing RS with LS")
+
+
+def _plot_feet(result, other, sync: bool, path):
+    """Foot heights and speeds of the blend (and of the other one with ``--compare``), with the frames the
+    source clips plant a foot shaded and the transitions marked."""
+    from kinodyn.blend import plots
+    from kinodyn.blend.evaluate import source_contacts
+    from kinodyn.contacts import intervals
+
+    label = "synchronized" if sync else "not synchronized"
+    runs = {label: result}
+    if other is not None:
+        runs["not synchronized" if sync else "synchronized"] = other
+    fps = result.motion.fps
+    spans = [(a / fps, b / fps) for a, b in intervals(result.transition_mask())]
+    return plots.plot_feet({k: r.motion for k, r in runs.items()}, path,
+                           labels={k: source_contacts(r) for k, r in runs.items()}, spans=spans)
 
 
 def run(args) -> int:
@@ -84,6 +103,7 @@ def run(args) -> int:
                                      compare=other if (other is not None and sync) else None)]
         if sync:
             written.append(plots.plot_timewarp(result, d / f"{stem}_timewarp.png"))
+        written.append(_plot_feet(result, other, sync, d / f"{stem}_feet.png"))
         for p in written:
             print(f"wrote {p}")
     if args.html:
@@ -95,6 +115,9 @@ def run(args) -> int:
             motions = {"synchronized" if sync else "blend": m}
             if other is not None:
                 motions["not synchronized" if sync else "synchronized"] = other.motion
-            page = html.write(args.html, motions, title=f"kinodyn blend: {script.name or Path(args.script).stem}")
+            # support phases on: the phase bars of every character fill the timeline under the scene;
+            # a comparison side by side, in lanes across the direction of travel
+            page = html.write(args.html, motions, ["contacts", "phases"], layout="lanes" if other else "world",
+                              title=f"kinodyn blend: {script.name or Path(args.script).stem}")
             print(f"wrote {page.path} ({page.bytes / 1e6:.1f} MB)")
     return 0

@@ -1,6 +1,6 @@
 """``kinodyn render FILE... -o out.mp4``: a video (MP4, GIF) or still (PNG) rendered offscreen.
 
-Same inputs and overlays as ``kinodyn view``; MuJoCo's renderer draws offscreen with the first backend
+Same inputs, overlays, layouts and ``--loop`` / ``--hold`` as ``kinodyn view``; MuJoCo's renderer draws offscreen with the first backend
 that works here (EGL, then OSMesa, then GLFW with a display; ``MUJOCO_GL`` to choose).
 """
 
@@ -45,7 +45,8 @@ def run(args) -> int:
                        shadows=not args.fast, samples=0 if args.fast else RenderConfig.samples, body=args.body,
                        hud=not args.no_hud)
     res = render(out, motions, overlays_arg(args.overlays), names=split_list(args.names),
-                 colors=split_list(args.colors), layout=args.layout, config=cfg, progress=progress)
+                 colors=split_list(args.colors), layout=args.layout, loop_clips=args.loop_clips, config=cfg,
+                 progress=progress)
     print(f"wrote {out}: {res.frames} frame{'s' * (res.frames != 1)} at {res.fps:g} fps, {res.width}x{res.height}, "
           f"{res.seconds:.1f} s ({res.frames / max(res.seconds, 1e-9):.1f} frames/s)")
     return 0

@@ -8,6 +8,8 @@ Modules: :mod:`~kinodyn.contact.setting` (materials, pieces, objects), :mod:`~ki
 (segments, chains, reach cones), :mod:`~kinodyn.contact.cones`, :mod:`~kinodyn.contact.ccd`
 (equations 2-5), :mod:`~kinodyn.contact.resolve` (the avatar loop), :mod:`~kinodyn.contact.impulse`
 (equations 6-10), :mod:`~kinodyn.contact.simulate` (figure 3's frame loop), :mod:`~kinodyn.contact.fix`
-(cleaning clips), :mod:`~kinodyn.contact.motions` (the scenarios' tracker input).
+(cleaning clips), :mod:`~kinodyn.contact.motions` (the scenarios' tracker input),
+:mod:`~kinodyn.contact.display` (object shapes along a run, penetrating segments, contact normals: what
+the viewer page of ``kinodyn contact run --html`` draws).
 Uses the core (skeleton, motion, math.quat, kinematics, limits), data.library and physics.body.
 """

@@ -2,8 +2,9 @@
 
 ``kinodyn contact run SCENARIO -o out/ [--html] [--png N]`` simulates a shipped scenario (or a scene
 file) and writes the avatar's resolved motion (BVH), the objects' trajectories (NPZ + JSON names), a
-per-frame timing report (CSV) and a summary (JSON); ``--html`` adds the viewer page (the resolved and
-tracked avatar), ``--png N`` N rendered frames. ``kinodyn contact fix MOTION --scene S.yaml -o
+per-frame timing report (CSV) and a summary (JSON); ``--html`` adds the viewer page (the scene's
+objects on their trajectories, the resolved avatar, the tracked one as a reference with its segments
+inside obstacles in red, contact normals as arrows: :func:`write_page`), ``--png N`` N rendered frames. ``kinodyn contact fix MOTION --scene S.yaml -o
 fixed.bvh`` resolves every frame of a clip against a scene's fixed objects and the avatar itself and
 reports what changed per frame. ``kinodyn contact list`` names the scenarios.
 """
@@ -107,16 +108,75 @@ def _run(args) -> int:
         from kinodyn.contact.plots import render_frames
 
         written += [p.name for p in render_frames(scene, result, out, count=args.png)]
-    if args.html and result.motion is not None:
-        from kinodyn.viz import html
-
-        html.write(out / f"{scene.name}.html", [result.motion, result.tracked], names=["resolved", "tracked"])
+    if args.html:
+        write_page(out / f"{scene.name}.html", scene, result)
         written.append(f"{scene.name}.html")
     print(f"{scene.name}: {info['frames']} frames, {info['frame_ms_mean']:.2f} ms/frame mean "
           f"({info['frame_ms_max']:.2f} max), {info['iterations_per_frame']:.2f} CCD iterations/frame, "
           f"deepest penetration left {info['max_penetration_mm']:.3f} mm")
     print(f"wrote {', '.join(written)} in {out}/")
     return 0
+
+
+_KIND_COLOURS = {"fixed": "#b8b4ab", "simulated": "#f28c28", "driven": "#5b8ce6"}
+
+
+def scene_props(scene, result, unlabelled=()) -> list:
+    """The run's objects as viewer props (:class:`kinodyn.viz.objects.Prop`): fixed ones grey and
+    translucent (walls do not hide the avatar), simulated ones orange (with the path of their centre),
+    the hand blue. Objects named in ``unlabelled`` are left out of the legend."""
+    from kinodyn.contact.display import shape_tracks
+    from kinodyn.viz.objects import Prop
+
+    props, labelled = [], set(unlabelled)
+    for t in shape_tracks(scene, result):
+        size = {"box": t.size, "sphere": t.size[:1], "capsule": t.size[:2]}.get(t.shape, (0.1,))
+        owner = t.name.split("/")[0]
+        label = "" if owner in labelled else owner
+        labelled.add(owner)
+        moving = len(t.positions) > 1
+        props.append(Prop(t.shape, t.positions, size, t.quats, fps=result.fps, color=_KIND_COLOURS[t.kind],
+                          label=label if t.kind != "fixed" else "", vertices=t.vertices, faces=t.faces,
+                          trail=moving and t.kind == "simulated", opacity=0.35 if t.kind == "fixed" else 1.0))
+    return props
+
+
+def _focus(scene, result):
+    """A scene without an avatar: a one-point character on the first moving object (the hand, else a
+    simulated object), which names it and which the follow camera frames."""
+    from kinodyn.motion import Motion
+    from kinodyn.skeleton import Skeleton
+
+    names = list(result.names)
+    moving = [k for k, o in enumerate(names) if o == "hand"] or [
+        k for k in range(len(names)) if np.ptp(result.pos[:, k], axis=0).max() > 1e-6] or [0]
+    k = moving[0]
+    point = Skeleton((names[k],), np.array([-1]), np.zeros((1, 3)))
+    rot = np.tile([1.0, 0.0, 0.0, 0.0], (len(result.pos), 1, 1))
+    return Motion(point, result.pos[:, k], rot, result.fps, name=names[k])
+
+
+def write_page(path, scene, result, margin: float = 0.01):
+    """The viewer page of a run: the scene's objects on their trajectories, the resolved avatar, the
+    tracked (unresolved) motion as a ghost with its segments inside a fixed object in red, and the
+    resolved avatar's contact normals (within ``margin`` m of a fixed object) as arrows."""
+    from kinodyn.contact.display import contact_normals, penetrating_joints
+    from kinodyn.viz import html
+
+    if result.motion is None:
+        focus = _focus(scene, result)  # it names its object in the legend
+        return html.write(path, focus, scene_props(scene, result, [focus.name]), title=scene.name)
+    overlays = scene_props(scene, result)
+    frames, points, normals = contact_normals(result.motion, scene, margin)
+    if len(frames):
+        # each arrow ends at the contact point, coming from the avatar's side: the push the
+        # obstacle takes; its normal is the reverse
+        overlays.append(html.Forces(frames / result.fps, points, -normals * 0.15, scale=1.0,
+                                    hold=1.0 / result.fps, label="contact normals"))
+    hot = penetrating_joints(result.tracked, scene)
+    actors = [html.Actor(result.motion, "resolved"),
+              html.Actor(result.tracked, "tracked", ghost=True, highlight=hot)]
+    return html.write(path, actors, overlays, title=scene.name)
 
 
 def _fix(args) -> int:

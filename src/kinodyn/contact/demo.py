@@ -2,7 +2,7 @@
 
 Runs the four avatar scenarios of Table 2 and the hand of figure 7 in the two-room gallery, and
 writes under ``out/contact``: each scenario's resolved motion (BVH), object trajectories, per-frame
-report (CSV) and summary (JSON), four rendered frames per scenario (PNG), the frame-time plot
+report (CSV) and summary (JSON), its viewer page (HTML), four rendered frames per scenario (PNG), the frame-time plot
 (figures 7 and 8) and ``table2.json`` with the columns of Table 2.
 """
 
@@ -19,7 +19,7 @@ SCENARIOS = ("two_arms", "self_collision", "two_arms_leg", "arm_in_corner", "han
 def demo(out: Path) -> list[str]:
     import numpy as np
 
-    from kinodyn.contact.command import summary
+    from kinodyn.contact.command import summary, write_page
     from kinodyn.contact.plots import frame_time_plot, render_frames
     from kinodyn.contact.scenefile import load_scene, scenario_path
     from kinodyn.contact.simulate import run_scene
@@ -39,6 +39,7 @@ def demo(out: Path) -> list[str]:
         with atomic_path(folder / f"{name}_objects.npz", suffix=".npz") as tmp:
             np.savez(tmp, pos=r.pos, quat=r.quat, fps=r.fps)
         render_frames(scene, r, folder, count=4)
+        write_page(folder / f"{name}.html", scene, r)
         s = summary(r)
         table[name] = s
         lines.append(f"{name}: {s['frames']} frames, {s['frame_ms_mean']:.2f} ms/frame, "
@@ -46,5 +47,5 @@ def demo(out: Path) -> list[str]:
                      f"deepest overlap left {s['max_penetration_mm']:.3f} mm")
     frame_time_plot(results, folder / "frame_times.png")
     atomic_write_bytes(folder / "table2.json", (json.dumps(table, indent=2) + "\n").encode())
-    lines.append(f"wrote {folder}/ (BVH, trajectories, PNG frames, frame_times.png, table2.json)")
+    lines.append(f"wrote {folder}/ (BVH, trajectories, viewer pages, PNG frames, frame_times.png, table2.json)")
     return lines

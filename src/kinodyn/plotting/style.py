@@ -19,6 +19,7 @@ from kinodyn.phases import phase_name
 __all__ = [
     "CONTACT_COLOR",
     "GROUND_COLOR",
+    "HIGHLIGHT_COLOR",
     "IMPACT_COLOR",
     "PALETTE",
     "PHASE_COLORS",
@@ -44,6 +45,7 @@ STAGE_COLORS = {"motion data": "#76b7b2", "simulation": "#b07aa1", "transition":
 
 CONTACT_COLOR = "#f2b705"  #: foot-contact markers
 IMPACT_COLOR = "#d62728"  #: impact points and impulse arrows
+HIGHLIGHT_COLOR = "#e8112d"  #: highlighted segments (inside an obstacle)
 GROUND_COLOR = "#f4f1ea"  #: the floor
 
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")

@@ -4,6 +4,7 @@
 - :mod:`kinodyn.viz.render`: MP4/GIF/PNG rendered offscreen on the CPU with MuJoCo (OSMesa).
 - :mod:`kinodyn.viz.gltf`: glTF 2.0 export of a skeleton animation.
 - :mod:`kinodyn.viz.world`: what a page or a video shows (characters and overlays), shared by both.
+- :mod:`kinodyn.viz.labels`: the frame counter and name labels of videos, placed apart.
 
 Plots and the colours every picture shares live lower, in :mod:`kinodyn.plotting`, so every capability
 may draw its figures without depending on the viewer.

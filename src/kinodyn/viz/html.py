@@ -186,6 +186,7 @@ def scene_data(world: World, compress: bool = True, impulse_scale: float = 0.02)
                  "ghost": bool(c.ghost), "face": {k: int(v) for k, v in c.face.items()},
                  "sides": [int(v) for v in c.sides] if c.sides is not None else None,
                  "pointNames": list(c.point_names), "loop": bool(c.loop)}
+        entry["hot"] = None if c.highlight is None else _encode_bytes(c.highlight, compress)
         if c.contacts is not None:
             bits = c.contacts[:, 0].astype(np.uint8) | (c.contacts[:, 1].astype(np.uint8) << 1)
             entry["contacts"] = _encode_bytes(bits, compress)
@@ -211,6 +212,7 @@ def _prop_data(p: Prop, i: int, compress: bool) -> dict:
     pos, q = check_prop(p, i)
     out = {"shape": p.shape, "size": _r(p.size), "fps": float(p.fps), "start": float(p.start), "frames": len(pos),
            "color": style.color(p.color), "label": p.label, "trail": bool(p.trail), "hide": bool(p.hide_outside),
+           "opacity": float(p.opacity),
            "pos": encode_positions(pos[:, None, :], compress), "quat": None if q is None else _r(q, 4)}
     if p.shape == "mesh":
         out["vertices"] = _r(np.asarray(p.vertices, dtype=np.float64), 4)
@@ -261,7 +263,7 @@ def _page(motions=None, overlays=("contacts",), *, names=None, colors=None, titl
         "version": FORMAT_VERSION, "title": title, "palette": list(style.PALETTE),
         "phaseColors": dict(style.PHASE_COLORS), "stageColors": dict(style.STAGE_COLORS),
         "radiusRules": [list(r) for r in RADIUS_RULES],
-        "contactColor": style.CONTACT_COLOR,
+        "contactColor": style.CONTACT_COLOR, "highlightColor": style.HIGHLIGHT_COLOR,
         "options": {"style": body, "camera": camera, "autoplay": bool(autoplay), "loop": bool(loop),
                     "contacts": "contacts" in show, "phases": "phases" in show,
                     "trajectories": "trajectories" in show, "impacts": True, "labels": True,

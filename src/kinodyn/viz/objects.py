@@ -63,6 +63,8 @@ class Prop:
         color: ``"#rrggbb"``; label: text for the legend.
         vertices: ``(V, 3)`` mesh vertices in the object frame (m); faces: ``(T, 3)`` int triangles.
         trail: draw the path of the centre.
+        opacity: 1 for solid; less draws it translucent (the walls of a room, so the characters
+            behind them show).
     """
 
     shape: str
@@ -77,6 +79,7 @@ class Prop:
     faces: np.ndarray | None = None
     trail: bool = True
     hide_outside: bool = False
+    opacity: float = 1.0
 
 
 def check_prop(p: Prop, i: int = 0) -> tuple[np.ndarray, np.ndarray | None]:
@@ -104,6 +107,8 @@ def check_prop(p: Prop, i: int = 0) -> tuple[np.ndarray, np.ndarray | None]:
             raise ParameterError(f"prop {i}: face indices must be in 0..{len(v) - 1}, got {f.min()}..{f.max()}")
     if not (np.isfinite(p.fps) and p.fps > 0):
         raise ParameterError(f"prop {i}: fps must be positive, got {p.fps}")
+    if not (np.isfinite(p.opacity) and 0 < p.opacity <= 1):
+        raise ParameterError(f"prop {i}: opacity must be in (0, 1], got {p.opacity}")
     q = None
     if p.quats is not None:
         q = np.asarray(p.quats, dtype=np.float64)

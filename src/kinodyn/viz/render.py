@@ -1,7 +1,8 @@
 """Videos and still frames rendered offscreen with MuJoCo's renderer (EGL, else OSMesa on the CPU).
 
 The same :class:`~kinodyn.viz.world.World` as the HTML viewer is drawn: capsules for bones, a chequered
-floor (1 m squares), foot-contact discs, impact arrows, root trajectories, names above heads, and 2-D
+floor (1 m squares), foot-contact discs, impact arrows, root trajectories, names above heads (placed
+apart from each other and the frame counter, sized to the picture: :mod:`kinodyn.viz.labels`), and 2-D
 support-phase bars with a playhead at the bottom. Frames go to MP4 (H.264 through the ``imageio-ffmpeg``
 wheel, which ships its own ffmpeg), GIF (Pillow) or PNG (one frame).
 
@@ -26,6 +27,7 @@ from kinodyn.io.atomic import atomic_path
 from kinodyn.physics import render as gl
 from kinodyn.physics.render import RendererUnavailableError, available, gl_backend
 from kinodyn.plotting import style
+from kinodyn.viz.labels import draw_text
 from kinodyn.viz.world import World, build_world
 
 __all__ = [
@@ -174,6 +176,7 @@ class Renderer:
         self._el = cfg.elevation if cfg.elevation is not None else -math.degrees(math.asin(d[2] / np.linalg.norm(d)))
         self._dist = cfg.distance
         self._view = None  # (lookat, distance, azimuth, elevation) of the last frame
+        self.label_boxes = np.zeros((0, 4), dtype=np.int64)  # (N, 4) name boxes of the last frame (pixels)
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -285,9 +288,6 @@ class Renderer:
                 for k in range(len(p)):
                     scene.sphere(p[k], 0.018, rgba)
             scene.disc((p[0, 0], p[0, 1], w.floor + 0.002), 0.3, shadow_rgba)
-            top = p[np.argmax(p[:, 2])]
-            if self.config.hud:
-                scene.sphere((top[0], top[1], top[2] + 0.22), 0.001, np.array([0, 0, 0, 0], np.float32), ch.name)
             if "contacts" in show and ch.contacts is not None and ch.feet:
                 f = ch.frame_at(t)
                 for k, side in enumerate(("left", "right")):
@@ -319,14 +319,23 @@ class Renderer:
                 d = j / mag if mag > 1e-9 else np.array([1.0, 0, 0])
                 scene.connector("arrow", 0.03, p - d * length, p, col)
                 scene.sphere(p, 0.045, col)
-        overlay = None
+        img = scene.finish(None)
         if self.config.hud:
-            nf = w.num_frames
-            f = min(math.floor(t * w.fps + 1e-6), nf - 1)
-            overlay = (f"frame {f} / {nf - 1}", f"{t:.2f} s")
-        img = scene.finish(overlay)
-        if self.config.hud and self._bars:
-            img = self._draw_bars(np.ascontiguousarray(img), t)
+            img = self._draw_text(img, cur, t)
+            if self._bars:
+                img = self._draw_bars(np.ascontiguousarray(img), t)
+        return img
+
+    def _draw_text(self, img: np.ndarray, cur: list[np.ndarray], t: float) -> np.ndarray:
+        """The frame counter and the names above the heads, never overlapping (:mod:`kinodyn.viz.labels`)."""
+        w = self.world
+        nf = w.num_frames
+        f = min(math.floor(t * w.fps + 1e-6), nf - 1)
+        tops = np.array([p[np.argmax(p[:, 2])] + (0.0, 0.0, 0.2) for p in cur]).reshape(-1, 3)
+        anchors = self.project(tops)
+        names = [c.name + (" (reference)" if c.ghost else "") for c in w.characters]
+        img, self.label_boxes = draw_text(img, f"frame {f} / {nf - 1}  {t:.2f} s", names,
+                                          [c.color for c in w.characters], anchors)
         return img
 
     def _draw_bars(self, img: np.ndarray, t: float) -> np.ndarray:

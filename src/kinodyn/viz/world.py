@@ -42,6 +42,7 @@ from kinodyn.viz.objects import (
     lane_offsets,
     lane_view,
     point_sides,
+    travel_direction,
 )
 
 __all__ = [
@@ -82,6 +83,9 @@ class Actor:
         ghost: draw it translucent, as a reference the others are compared with.
         loop: after its last frame the clip starts again (``True``) or holds its last pose (``False``);
             ``None`` takes ``build_world``'s ``loop_clips``.
+        highlight: ``(F, J)`` bool, or ``None``: in frame ``f`` the segment carried by joint ``j`` (the
+            bones from ``j`` to its children and end sites) is drawn in
+            :data:`kinodyn.plotting.style.HIGHLIGHT_COLOR` (segments inside an obstacle, say).
     """
 
     motion: Motion
@@ -90,6 +94,7 @@ class Actor:
     start: float = 0.0
     ghost: bool = False
     loop: bool | None = None
+    highlight: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -180,6 +185,7 @@ class Character:
         face: ``{"head": i, "left": j, "right": k}`` points that say where the head faces, or ``{}``.
         point_names: ``P`` names of the points (joints, then ``<joint>_end`` end sites).
         loop: the clip plays again after its last frame (else its last pose is held).
+        highlight: ``(F, P)`` bool, the bone ending at each point drawn highlighted, or ``None``.
     """
 
     name: str
@@ -197,6 +203,7 @@ class Character:
     face: dict = field(default_factory=dict)
     point_names: tuple[str, ...] = ()
     loop: bool = False
+    highlight: np.ndarray | None = None
 
     @property
     def num_frames(self) -> int:
@@ -363,7 +370,7 @@ def _actors(motions, names, colors) -> list[Actor]:
     out = []
     for i, a in enumerate(acts):
         nm = (names[i] if names is not None else None) or a.name or a.motion.name or f"character {i + 1}"
-        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost), a.loop))
+        out.append(Actor(a.motion, str(nm), cols[i], float(a.start), bool(a.ghost), a.loop, a.highlight))
     return out
 
 
@@ -410,6 +417,34 @@ def _layout_offsets(chars: list[np.ndarray], layout: str, gap: float = 0.8) -> l
         cx = xs[c] + 0.5 * width[c] - 0.5 * (lo[0] + hi[0]) - 0.5 * xs[-1]
         cy = ys[-1] - ys[r] - 0.5 * depth[r] - 0.5 * (lo[1] + hi[1]) - 0.5 * ys[-1]  # row 0 at the back
         out.append(b + np.array([cx, cy, 0.0]))
+    return out
+
+
+def _lanes(ghost: list[bool], chars: list[np.ndarray]) -> list[np.ndarray]:
+    """Lanes for the characters drawn solid; references (ghosts) are overlaid on the first one's lane,
+    their first root moved across the direction of travel onto its first root."""
+    if all(ghost) or not any(ghost):
+        return lane_offsets(chars)
+    solid = [p for p, g in zip(chars, ghost) if not g]
+    offs = lane_offsets(solid)
+    lanes = iter(offs)
+    d = travel_direction(solid)
+    n = np.array([d[1], -d[0], 0.0])
+    return [offs[0] + ((solid[0][0, 0] - p[0, 0]) @ n) * n if g else next(lanes) for p, g in zip(chars, ghost)]
+
+
+def _point_highlight(a: Actor, i: int, parents: np.ndarray) -> np.ndarray | None:
+    """``(F, P)`` highlight of the bone ending at each point, from an actor's ``(F, J)`` per joint."""
+    if a.highlight is None:
+        return None
+    h = np.asarray(a.highlight)
+    f, j = a.motion.num_frames, a.motion.num_joints
+    if h.shape != (f, j) or h.dtype != bool:
+        raise ParameterError(f"highlight of character {i} must be a bool array of shape ({f}, {j}), got "
+                             f"{h.dtype} {h.shape}")
+    out = np.zeros((f, len(parents)), dtype=bool)
+    child = np.nonzero(parents >= 0)[0]
+    out[:, child] = h[:, parents[child]]
     return out
 
 
@@ -484,7 +519,8 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         layout: ``"world"`` (positions as they are), ``"row"`` (side by side along X, each clip's first
             root position moved to its slot), ``"grid"`` (rows and columns), for clip galleries; or
             ``"lanes"`` (side by side across the direction of travel, for comparing movers:
-            :func:`kinodyn.viz.objects.lane_offsets`).
+            :func:`kinodyn.viz.objects.lane_offsets`; references, ``Actor(ghost=True)``, are overlaid on
+            the first solid character's lane).
         name: scene name.
         loop_clips: clips shorter than the scene start again after their last frame (else they hold
             their last pose); an :class:`Actor`'s ``loop`` overrides it.
@@ -509,7 +545,8 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         pos_list.append(pos)
         radii = bone_radii(pnames, parents, a.motion.skeleton.height())
         prepared.append((pos, parents, radii, pnames))
-    offsets = lane_offsets(pos_list) if layout == "lanes" else _layout_offsets(pos_list, layout)
+    offsets = (_lanes([a.ghost for a in actors], pos_list) if layout == "lanes"
+               else _layout_offsets(pos_list, layout))
     chars = []
     for i, (a, (pos, parents, radii, pnames), off) in enumerate(zip(actors, prepared, offsets)):
         m = a.motion
@@ -529,7 +566,7 @@ def build_world(motions, overlays=("contacts",), *, names=None, colors=None, lay
         sides = point_sides(pnames)
         chars.append(Character(a.name, a.color, m.fps, a.start, pos + off, parents, radii, m.num_joints,
                                _feet_points(m), lab, a.ghost, sides, face_points(pnames, sides, pos), tuple(pnames),
-                               bool(loop_clips if a.loop is None else a.loop)))
+                               bool(loop_clips if a.loop is None else a.loop), _point_highlight(a, i, parents)))
         if "phases" in auto and lab is not None and not any(p.character == i for p in phases):
             phases.append(Phases(support_phases(lab, m.fps, a.start), f"{a.name} support", i))
     fps = max(c.fps for c in chars)
