@@ -8,6 +8,7 @@ measures (``kinodyn.physics.bench``). Results are written as JSON: ``{"name", "m
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import os
@@ -17,7 +18,7 @@ from dataclasses import dataclass, field
 from kinodyn import registry
 from kinodyn.errors import UnknownNameError
 
-__all__ = ["BenchResult", "get", "machine_info", "names", "run"]
+__all__ = ["BenchResult", "one_numba_thread", "get", "machine_info", "names", "run"]
 
 
 def names() -> list[str]:
@@ -61,11 +62,26 @@ def get(name: str):
     return mod.run
 
 
+@contextlib.contextmanager
+def one_numba_thread():
+    """Compiled kernels on one thread while a benchmark runs (figures are per core); restored after."""
+    import numba
+
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(threads)
+
+
 def run(name: str, quick: bool = False, json_path=None, progress=None) -> BenchResult:
-    """Run one benchmark; write its JSON atomically when ``json_path`` is given."""
+    """Run one benchmark with numba pinned to one thread; write its JSON atomically when ``json_path``
+    is given."""
     from kinodyn.io.atomic import atomic_write_bytes
 
-    result = get(name)(quick=quick, progress=progress)
+    with one_numba_thread():
+        result = get(name)(quick=quick, progress=progress)
     if json_path is not None:
         atomic_write_bytes(json_path, (json.dumps(result.to_json(), indent=2) + "\n").encode())
     return result

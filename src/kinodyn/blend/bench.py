@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from kinodyn.bench import BenchResult
+from kinodyn.bench import BenchResult, one_numba_thread
 
 __all__ = ["characters_at_60fps", "crowd_benchmark", "run", "sliding_benchmark"]
 
@@ -130,14 +130,8 @@ _UNITS = {"sliding_cm_s_synced": "cm/s", "lock_p95_cm": "cm", "lock_max_cm": "cm
 
 def run(quick: bool = False, progress=None) -> BenchResult:
     """The blend benchmark on one thread (the compiled kernels' thread count is restored after)."""
-    import numba
-
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
+    with one_numba_thread():
         return _run(quick)
-    finally:
-        numba.set_num_threads(threads)
 
 
 def _run(quick: bool) -> BenchResult:

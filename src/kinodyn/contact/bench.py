@@ -267,9 +267,6 @@ def _ikpy(sk, chain, base_pos, tip, goals):
 
 
 def run(quick: bool = False, progress=None) -> BenchResult:
-    import numba
-
-    numba.set_num_threads(1)
     res = BenchResult("contact")
     _narrow(res, quick)
     _ik(res, quick)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from kinodyn.contact.cones import qmul, qrot
+from kinodyn.contact.cones import qmat, qmul, qrot
 from kinodyn.contact.setting import SceneObject
 from kinodyn.errors import ParameterError
 
@@ -96,17 +96,7 @@ def _place(g_list, obj_of, opos, oquat, lpos, lquat, aabb, xpos, xmat, lo, hi): 
     for g in g_list:
         o = obj_of[g]
         q = qmul(oquat[o], lquat[g])
-        w, x, y, z = q[0], q[1], q[2], q[3]
-        r = np.empty((3, 3))
-        r[0, 0] = 1 - 2 * (y * y + z * z)
-        r[0, 1] = 2 * (x * y - w * z)
-        r[0, 2] = 2 * (x * z + w * y)
-        r[1, 0] = 2 * (x * y + w * z)
-        r[1, 1] = 1 - 2 * (x * x + z * z)
-        r[1, 2] = 2 * (y * z - w * x)
-        r[2, 0] = 2 * (x * z - w * y)
-        r[2, 1] = 2 * (y * z + w * x)
-        r[2, 2] = 1 - 2 * (x * x + y * y)
+        r = qmat(q)
         p = opos[o] + qrot(oquat[o], lpos[g])
         c = p + r @ aabb[g, 0]
         for i in range(3):

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from kinodyn.bench import BenchResult
+from kinodyn.bench import BenchResult, one_numba_thread
 
 __all__ = ["measure", "measure_bare", "run"]
 
@@ -114,14 +114,8 @@ def _observer(result: BenchResult, quick: bool) -> None:
 
 
 def run(quick: bool = False, progress=None) -> BenchResult:
-    import numba
-
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
+    with one_numba_thread():
         return _run(quick, progress)
-    finally:
-        numba.set_num_threads(threads)
 
 
 def _run(quick: bool, progress) -> BenchResult:

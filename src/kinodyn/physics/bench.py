@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from kinodyn.bench import BenchResult
+from kinodyn.bench import BenchResult, one_numba_thread
 
 __all__ = ["PythonPD", "measure_world", "run", "tracked_world"]
 
@@ -223,14 +223,8 @@ def _rollout_rate(nroll: int, nstep: int, nthread: int, body, walk, repeats: int
 def run(quick: bool = False, progress=None) -> BenchResult:
     """The physics benchmark with the compiled kernels on one thread (their thread count is restored
     after); MuJoCo steps each world on the calling thread, two worlds on two."""
-    import numba
-
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
+    with one_numba_thread():
         return _run(quick, progress)
-    finally:
-        numba.set_num_threads(threads)
 
 
 def _run(quick: bool, progress) -> BenchResult:

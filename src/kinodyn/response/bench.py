@@ -131,9 +131,6 @@ def _throughput(n: int, res: BenchResult) -> None:
 
 
 def run(quick: bool = False, progress=None) -> BenchResult:
-    import numba
-
-    numba.set_num_threads(1)
     res = BenchResult("response")
     lib, models = _models(quick, res)
     _held_out(lib, models, 8 if quick else 200, res)
