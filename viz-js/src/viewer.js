@@ -382,6 +382,9 @@ const SIDES = ['left', 'right'];
 
 // Blob shadows, foot-contact rings and noses of every character of a scene: three instanced meshes,
 // three draw calls however many characters there are. Filled by the characters each frame.
+// Marks that draw nothing: a character updated while its scene's marks are being rebuilt.
+const NO_MARKS = { shadow() {}, nose() {}, ring() {} };
+
 class Marks {
   constructor(n, world) {
     this.shadows = new THREE.InstancedMesh(world.discGeo, world.shadowMat, Math.max(n, 1));
@@ -555,7 +558,7 @@ class Character {
       }
       this.dots.instanceMatrix.needsUpdate = true;
     }
-    const marks = world.marks;
+    const marks = world.marks || NO_MARKS;  // none while a scene is being switched in
     // Blob shadow under the root, shrinking with height above the floor.
     const rz = cur[2] - world.floor;
     // (none for references, nor for a one-point marker without bones: the object it rides casts its own)
