@@ -204,7 +204,9 @@ def test_centre_of_mass_and_support_polygon(drv, walk_page, walk):
 
 def test_left_and_right_tints_and_a_nose(drv, walk_page):
     open_page(drv, walk_page, "window.kinodynViewer.setView('side')")
-    frames(drv, 4)
+    # paused at mid-stride, so both sides show from the side (a playing walk hides one leg behind the other)
+    drv.execute_script("window.kinodynViewer.pause()")
+    at(drv, 0.25, 4)
     img = image(drv)
     base = style.rgb(style.PALETTE[0])
     light = base + (1 - base) * 0.38
