@@ -27,7 +27,7 @@ from kinodyn.roles import ROLES, has_role
 from kinodyn.skeleton import Skeleton
 
 __all__ = ["JointLimit", "JOINT_TYPES", "limits_for", "joint_kind", "violations", "LimitReport", "clamp",
-           "HINGE_OFF_AXIS_TOLERANCE"]
+           "HINGE_OFF_AXIS_TOLERANCE", "bone_direction"]
 
 _DEG = np.pi / 180.0
 FORWARD = np.array([1.0, 0.0, 0.0])
@@ -112,7 +112,7 @@ def joint_kind(skeleton: Skeleton, j: int) -> tuple[str, str, dict]:
     return _DEFAULT
 
 
-def _bone_direction(skeleton: Skeleton, j: int) -> np.ndarray:
+def bone_direction(skeleton: Skeleton, j: int) -> np.ndarray:
     """Rest direction of the bone that starts at joint ``j`` (toward its first child or end site)."""
     kids = skeleton.children(j)
     if len(kids):
@@ -142,7 +142,7 @@ def limits_for(skeleton: Skeleton) -> tuple[JointLimit, ...]:
         if kind == "root":
             out.append(JointLimit("root", name="root"))
         elif kind == "hinge":
-            bone = _bone_direction(skeleton, j)
+            bone = bone_direction(skeleton, j)
             axis = _hinge_axis(bone, kw["bend"])
             out.append(JointLimit("hinge", axis=tuple(float(x) for x in axis), lower=kw["lower"],
                                   upper=kw["upper"], name=tname, twist_axis=tuple(float(x) for x in bone),

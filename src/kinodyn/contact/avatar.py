@@ -107,17 +107,6 @@ def _chains(skeleton: Skeleton, lims) -> tuple[list[np.ndarray], list[int]]:
     return chains, torso
 
 
-def _bone_dir(skeleton: Skeleton, j: int) -> np.ndarray:
-    kids = skeleton.children(j)
-    if len(kids):
-        v = skeleton.offsets[kids].mean(axis=0)
-    else:
-        ends = np.nonzero(skeleton.end_parents == j)[0]
-        v = skeleton.end_offsets[ends].mean(axis=0) if len(ends) else skeleton.offsets[j]
-    n = np.linalg.norm(v)
-    return v / n if n > 1e-9 else np.array([0.0, 0.0, -1.0])
-
-
 def cone_boundary(tname: str, max_angle: float) -> np.ndarray:
     """Radii ``(K,)`` (rad) of the reach cone of a joint type, capped at ``max_angle``."""
     deg = np.array(CONE_SHAPES.get(tname, (max_angle / _DEG,) * CONE_VERTICES), dtype=np.float64)
@@ -125,7 +114,7 @@ def cone_boundary(tname: str, max_angle: float) -> np.ndarray:
 
 
 def _cone(skeleton: Skeleton, j: int, lim, rest_pos) -> tuple[np.ndarray, np.ndarray]:
-    d0 = _bone_dir(skeleton, j)
+    d0 = jl.bone_direction(skeleton, j)
     e1 = _FORWARD - (_FORWARD @ d0) * d0
     if np.linalg.norm(e1) < 0.3:  # bone along the facing direction (feet): chart x is up
         e1 = np.array([0.0, 0.0, 1.0]) - d0[2] * d0
