@@ -31,6 +31,10 @@ from kinodyn.kinematics import forward_kinematics
 from kinodyn.math import quat, xform
 from kinodyn.motion import Motion
 
+# Fast-math without reassociation: the error sums keep their written order, so a labelled dataset is the
+# same bit for bit whatever process, thread count or array alignment computes it.
+_NO_REASSOC = {"nnan", "ninf", "nsz", "arcp", "contract", "afn"}
+
 __all__ = ["SearchConfig", "SearchResult", "Windows", "body_tracks", "body_weights", "exhaustive",
            "window_errors", "windows"]
 
@@ -129,7 +133,7 @@ def windows(pos: np.ndarray, rot: np.ndarray, window: int, root: int = 0) -> Win
 
 
 # long kernel: the whole error D for every (window, window) pair in one compiled loop nest
-@numba.njit(cache=True, fastmath=True, parallel=True)
+@numba.njit(cache=True, fastmath=_NO_REASSOC, parallel=True)
 def _errors_kernel(sp, sr, lp, lr, wp, wt, ww, out):  # pragma: no cover - compiled
     s_n, w_n, j_n = sp.shape[0], sp.shape[1], sp.shape[2]
     m_n = lp.shape[0]
