@@ -1,7 +1,7 @@
 """The driven avatar: convex segments sized like the physics body, IK chains, reach cones.
 
 Schmidl and Lin, "Geometric and kinematic overlap avoidance": the avatar is an articulated driven
-object; its five chains (two arms, two legs, the neck) are solved by CCD (:mod:`kinodyn.contact.ccd`).
+object; its five chains (two arms, two legs, the neck) are solved by CCD (:mod:`kinodyn.ik.ccd`).
 Its segments are the capsules and boxes of :func:`kinodyn.physics.body.build_body` (radii a fraction
 of the standing height, boxes for the feet), so contact and physics see the same body. Each segment
 is one driven :class:`~kinodyn.contact.setting.SceneObject` whose frame is its joint's frame.
@@ -9,7 +9,7 @@ is one driven :class:`~kinodyn.contact.setting.SceneObject` whose frame is its j
 Joint limits come from :mod:`kinodyn.limits` (the one specification): hinges keep its axis and range;
 ball joints get a reach cone (Wilhelms and Van Gelder 2001) for the direction of their bone, a
 spherical polygon around the rest direction whose every point lies within the joint's ``max_angle``,
-so a pose inside the cone, with its twist limited as in :mod:`kinodyn.contact.ccd`, is inside the
+so a pose inside the cone, with its twist limited as in :mod:`kinodyn.ik.cones`, is inside the
 limits too.
 
 Shapes: ``J`` joints, ``S`` segments (one per joint for the built-in humanoid), ``K`` cone vertices.

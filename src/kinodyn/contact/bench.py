@@ -26,7 +26,7 @@ DEPTHS = (0.005, 0.02, 0.05, 0.09)
 
 
 def _scenarios(res: BenchResult, progress) -> None:
-    from kinodyn.contact import ccd
+    from kinodyn.ik import ccd
     from kinodyn.contact.command import summary
     from kinodyn.contact.fix import penetration_before
     from kinodyn.contact.scenefile import load_scene, scenario_path
@@ -195,7 +195,7 @@ def _narrow(res: BenchResult, quick: bool) -> None:
 
 
 def _ik(res: BenchResult, quick: bool) -> None:
-    from kinodyn.contact import ccd
+    from kinodyn.ik import ccd
     from kinodyn.contact.avatar import build_avatar, pose_fk
     from kinodyn.data.skeleton import humanoid
     from kinodyn.math import quat

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinodyn.contact.collide import CollisionWorld
-from kinodyn.contact.cones import cross3, qaxis, qmat, qmul
 from kinodyn.contact.setting import coefficients
+from kinodyn.math.array_kernels import cross3, qaxis, qmat, qmul
 
 __all__ = ["Bodies", "ImpulseConfig", "ImpulseStats", "apply_impulses", "contact_rows", "couple", "step"]
 

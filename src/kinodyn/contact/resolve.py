@@ -8,7 +8,7 @@ attraction of Boulic and Thalmann):
    by its global penetration depth (equation 1);
 2. chains (arms, legs, neck) in random order: find the penetrating link ``i`` nearest the chain's
    root, its end effector at the mean of its contacts (equation 2), the goal pushed out of the
-   obstacle by the link's global depth (equation 3), and CCD (:func:`kinodyn.contact.ccd.ccd_solve`)
+   obstacle by the link's global depth (equation 3), and CCD (:func:`kinodyn.ik.ccd.ccd_solve`)
    from link ``i`` inwards; a link lying along the surface is moved out by translation and the parent
    chain reconnected; repeat until no link penetrates. Obstacles are fixed objects and the avatar's
    own other chains and torso (self-collision);
@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinodyn.contact.avatar import Avatar, pose_fk, segment_poses
-from kinodyn.contact.ccd import CCDConfig, ccd_solve, chain_fk, chain_limits, project_chain
 from kinodyn.contact.collide import CollisionWorld
-from kinodyn.contact.cones import qmul, qrot
 from kinodyn.contact.depth import global_depth, interpolate_back
+from kinodyn.ik.ccd import CCDConfig, ccd_solve, chain_fk, chain_limits, project_chain
 from kinodyn.math import quat
+from kinodyn.math.array_kernels import qmul, qrot
 
 __all__ = ["AvatarDriver", "FrameStats", "ResolveConfig"]
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from kinodyn import limits as jl
-from kinodyn.contact import ccd
+from kinodyn.ik import ccd
 from kinodyn.contact.avatar import build_avatar, pose_fk
 from kinodyn.contact.scenefile import load_scene, scenario_path
 from kinodyn.contact.simulate import ContactSimulation

@@ -10,12 +10,13 @@ chain's root turns about its axis ``a_h`` (origin ``o_h``) by the angle between 
 
 A hinge (elbow, knee) has one axis and a range; a ball joint is three planar joints with a common
 centre (the parent frame's axes) whose result is projected back into its reach cone
-(:mod:`kinodyn.contact.cones`). Sweeps repeat until ``|ee - goal|`` is within the tolerance. The
+(:mod:`kinodyn.ik.cones`). Sweeps repeat until ``|ee - goal|`` is within the tolerance. The
 special case of a link lying along the surface moves the link's origin instead and keeps the link's
 world orientation ("reconnect limb i-1").
 
 :func:`ccd_solve` is the public, self-contained solver (arrays in, :class:`IKResult` out); the avatar
-loop that finds the links, end effectors and goals is :mod:`kinodyn.contact.resolve`.
+loop that finds the links, end effectors and goals is :mod:`kinodyn.contact.resolve`; scene
+generation reuses the solver on its own chains.
 Shapes: ``n`` chain joints, ``K`` cone vertices; metres, radians, rotations ``(w, x, y, z)``.
 """
 
@@ -27,9 +28,10 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from kinodyn.contact.cones import KIND_BALL, KIND_FIXED, KIND_HINGE, project_joint, qaxis, qmul, qrot
 from kinodyn.errors import ParameterError
+from kinodyn.ik.cones import KIND_BALL, KIND_FIXED, KIND_HINGE, cone_contains, project_joint
 from kinodyn.kinematics import fk_link
+from kinodyn.math.array_kernels import qaxis, qmul, qrot
 
 __all__ = [
     "CCDConfig",
@@ -229,8 +231,6 @@ def project_chain(local_rot, limits: ChainLimits) -> np.ndarray:
 def limits_hold(local_rot, limits: ChainLimits, tol: float = 1e-6) -> np.ndarray:
     """``(n,)`` True where a chain joint is inside its limits (hinge range and axis, total angle) and
     reach cone: the check the tests and the benchmark count violations with."""
-    from kinodyn.contact.cones import cone_contains
-
     q = np.asarray(local_rot, dtype=np.float64).reshape(-1, 4)
     ok = np.ones(len(q), dtype=bool)
     for h in range(len(q)):
