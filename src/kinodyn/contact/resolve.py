@@ -50,6 +50,10 @@ class ResolveConfig:
         tolerance: overlap that counts as none (m).
         attraction_halflife: halflife of the pull from the last solved pose to the tracked one (s).
         self_collision: chains also avoid the avatar's other chains and torso.
+        keep_free: a tracked pose that overlaps nothing is taken as it is, even right after a frame
+            that IK changed (no attraction from the last solved pose): what cleaning recorded motion
+            wants, so that frames without overlap stay bit-identical. Live tracking leaves it off, so
+            that limbs leaving an obstacle are pulled back to the tracked angles instead of popping.
         seed: seed of the random chain order.
     """
 
@@ -61,6 +65,7 @@ class ResolveConfig:
     tolerance: float = 2e-4
     attraction_halflife: float = 0.03
     self_collision: bool = True
+    keep_free: bool = False
     seed: int = 0
 
 
@@ -137,6 +142,8 @@ class AvatarDriver:
         self.stats = FrameStats()
         root = np.array(root_pos, dtype=np.float64)
         q = np.array(local_rot, dtype=np.float64)
+        if self.cfg.keep_free and self.active.any() and self._free_as_tracked(root, q):
+            return root, q, self.stats
         if self.solved is not None:
             alpha = 1.0 - 0.5 ** (1.0 / (self.fps * self.cfg.attraction_halflife))
             for c, chain in enumerate(self.avatar.chains):
@@ -173,6 +180,15 @@ class AvatarDriver:
         if pen <= self.cfg.tolerance:
             self.free = (root.copy(), q.copy())
         return root, q, self.stats
+
+    def _free_as_tracked(self, root, q) -> bool:
+        """Whether the tracked pose overlaps nothing; if so it becomes the last solved and free pose."""
+        self._place(root, q)
+        if self._deepest() > self.cfg.tolerance:
+            return False
+        self.active[:] = False
+        self.solved = self.free = (root.copy(), q.copy())
+        return True
 
     def _torso(self, root, q) -> np.ndarray:
         torso = self.objs[self.avatar.torso]

@@ -79,7 +79,8 @@ class ChainLimits:
         axis: ``(n, 3)`` hinge axes (local frames).
         lower, upper: ``(n,)`` hinge ranges (rad).
         max_angle: ``(n,)`` bound of the total rotation of ball and fixed joints (rad).
-        axes: ``(n, 3, 3)`` reach-cone rest direction and chart axes; poly: ``(n, K, 2)`` cone polygons.
+        axes: ``(n, 4, 3)`` reach-cone rest direction, centre and chart axes; poly: ``(n, K, 2)`` cone
+            polygons (:func:`kinodyn.ik.cones.reach_cones`).
     """
 
     kind: np.ndarray
@@ -108,7 +109,7 @@ class IKResult:
 
 def chain_limits(limits, cone_axes, cone_points, joints) -> ChainLimits:
     """:class:`ChainLimits` of ``joints (n,)`` from :func:`kinodyn.limits.limits_for` rows and an
-    avatar's cones (``cone_axes (J, 3, 3)``, ``cone_points (J, K, 2)``)."""
+    avatar's cones (``cone_axes (J, 4, 3)``, ``cone_points (J, K, 2)``)."""
     joints = np.asarray(joints, dtype=np.int64)
     rows = [limits[j] for j in joints]
     kind = np.array([KIND_HINGE if r.kind == "hinge" else KIND_FIXED if r.kind == "fixed" else KIND_BALL
