@@ -9,7 +9,20 @@ from kinodyn.contact.simulate import ContactSimulation
 from kinodyn.ik import ccd
 from kinodyn.math import quat
 
-AVATAR_SCENARIOS = ["two_arms", "self_collision", "two_arms_leg", "arm_in_corner"]
+AVATAR_SCENARIOS = ["two_arms", "self_collision", "two_arms_leg", "arm_in_corner", "walk_into_wall"]
+
+
+def _scene(name):
+    scene = load_scene(scenario_path(name))
+    if scene.avatar.motion.startswith("mocap:"):  # a real CMU walk from the shared data
+        from conftest import MOCAP
+
+        if not (MOCAP / scene.avatar.motion[len("mocap:"):]).is_file():
+            pytest.skip("shared motion-capture folder not found")
+        from kinodyn.contact.command import with_motion
+
+        scene = with_motion(scene, mocap=MOCAP)
+    return scene
 
 
 @pytest.mark.parametrize("name", AVATAR_SCENARIOS)
@@ -17,7 +30,7 @@ def test_no_segment_stays_inside_a_fixed_object_and_limits_hold(name):
     """Every frame of the scenario: after resolution no avatar segment penetrates a fixed object by
     more than 1 mm (measured afresh, not from the solver's own figure), and every joint of every chain
     that IK solved is inside its limits and reach cone."""
-    sim = ContactSimulation(load_scene(scenario_path(name)))
+    sim = ContactSimulation(_scene(name))
     av, w, first = sim.avatar, sim.world, sim.first
     lims = [ccd.chain_limits(av.limits, av.cone_axes, av.cone_points, c) for c in av.chains]
     fixed = np.array([o.kind == "fixed" for o in w.objects])
