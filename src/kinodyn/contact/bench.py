@@ -10,7 +10,8 @@ adjusted by IK per frame, CCD iterations per frame, IK share of the frame time, 
 frame, collision-query share (Table 2's columns). ``max_penetration_mm`` is measured afresh on the
 resolved motions against the fixed objects; ``limit_violations`` counts chain joints outside their
 limits or reach cones in any frame where IK solved (or held) that chain. The narrow phase is timed and
-checked on analytic cases (sphere, box and capsule pairs at known depths, and a sphere on a piece of a CoACD-decomposed mesh) for
+checked on analytic cases (sphere, box and capsule pairs at known depths, and a sphere on a piece of
+a CoACD-decomposed mesh) for
 MuJoCo's ``mj_geomDistance`` (kinodyn's choice), coal and python-fcl, each on the same geometry. CCD is
 timed beside ikpy on the same arm chain and goals.
 """
@@ -51,6 +52,7 @@ def _scenarios(res: BenchResult, progress) -> None:
     from kinodyn.ik import ccd
 
     worst_mean, worst_frame, pen, bad = 0.0, 0.0, 0.0, 0
+    ccd.warm_up()  # the IK kernels too, which the first frames (no contact yet) never call
     for scene in _scenes(res):
         name = scene.name
         sim = ContactSimulation(scene)

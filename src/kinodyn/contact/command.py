@@ -35,8 +35,8 @@ def add_arguments(p) -> None:
     q.add_argument("--motion", help="the avatar's motion file (BVH, AMC, NPZ) instead of the scene's own; a "
                    "scene that plays motion capture (walk_into_wall: CMU 02_01) needs it unless --mocap or "
                    "KINODYN_MOCAP names the folder holding the file")
-    q.add_argument("--mocap", metavar="DIR", help="the motion-capture folder a scene's mocap: motion is found in "
-                   "(default: $KINODYN_MOCAP)")
+    q.add_argument("--mocap", metavar="DIR", help="the motion-capture folder a scene's mocap: motion is "
+                   "found in (default: $KINODYN_MOCAP)")
     q.set_defaults(contact=_run)
     q = sub.add_parser("fix", help="resolve a clip against a scene's objects, floor and itself")
     q.add_argument("motion", help="motion file (BVH, AMC, NPZ) or a built-in clip name")

@@ -12,7 +12,8 @@ capped where it would stop the sliding, so it never reverses it. Contacts are re
 in a priority queue, most negative ``v_perp`` first, until none approaches. A contact approaching slower
 than ``resting_speed``, or than gravity adds in ``resting_steps`` integration steps, is a resting
 contact and gets ``e = 0`` (the micro-collision treatment of resting contact): so an object lying on
-a table does not bounce on the speed one step of gravity gives it, however long the step. Driven objects follow their tracker through the virtual coupling spring
+a table does not bounce on the speed one step of gravity gives it, however long the step. Driven
+objects follow their tracker through the virtual coupling spring
 ``m x'' = -K x - R x'`` (6) (``x`` measured from the tracker; K = 1000, R = 40).
 
 Each contact of a convex pair is placed at the centre of its manifold (the witness point and the

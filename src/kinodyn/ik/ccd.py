@@ -43,6 +43,7 @@ __all__ = [
     "chain_limits",
     "limits_hold",
     "project_chain",
+    "warm_up",
 ]
 
 
@@ -247,3 +248,19 @@ def limits_hold(local_rot, limits: ChainLimits, tol: float = 1e-6) -> np.ndarray
             if limits.kind[h] == KIND_BALL:
                 ok[h] &= bool(cone_contains(qh, limits.axes[h], limits.poly[h]))
     return ok
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every kernel of the solver on a two-joint chain, so that a
+    timed loop does not pay for it at its first contact."""
+    kind = np.array([KIND_BALL, KIND_HINGE], dtype=np.int64)
+    rest_down = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    az = np.arange(8) * np.pi / 4
+    octagon = np.stack([np.cos(az), np.sin(az)], axis=1)
+    lim = ChainLimits(kind, np.tile([0.0, 1.0, 0.0], (2, 1)), np.zeros(2), np.array([0.0, 2.5]), np.full(2, 2.0),
+                      np.tile(rest_down, (2, 1, 1)), np.tile(octagon, (2, 1, 1)))
+    offs = np.array([[0.0, 0.2, 0.0], [0.0, 0.0, -0.3]])
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (2, 1))
+    r = ccd_solve(np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), offs, q, 1, np.array([0.0, 0.0, -0.3]),
+                  np.array([0.2, 0.2, -0.4]), lim)
+    limits_hold(project_chain(r.local_rot, lim), lim)
