@@ -56,3 +56,20 @@ def test_list_names_the_scenarios(capsys):
     out = capsys.readouterr().out
     for name in ("hand", "two_arms", "self_collision", "two_arms_leg", "arm_in_corner"):
         assert name in out
+
+
+def test_a_scene_playing_motion_capture_needs_the_file(tmp_path, capsys, monkeypatch):
+    """walk_into_wall plays CMU 02_01, which is never shipped: without it the run stops with one line
+    naming the file and how to give it; --motion gives it directly."""
+    monkeypatch.setenv("KINODYN_MOCAP", str(tmp_path / "empty"))
+    assert main(["contact", "run", "walk_into_wall", "-o", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cmu_02_01.bvh" in err[0] and "--motion" in err[0]
+    assert main(["contact", "run", "walk_into_wall", "-o", str(tmp_path), "--motion", str(tmp_path / "no.bvh")]) == 2
+    assert "no such motion file" in capsys.readouterr().err
+    clip = tmp_path / "walk.bvh"
+    from kinodyn.io import save
+
+    save(clip, scenario_motion("walk")[:30])
+    assert main(["contact", "run", "walk_into_wall", "-o", str(tmp_path), "--motion", str(clip)]) == 0
+    assert load(tmp_path / "walk_into_wall.bvh").num_frames == 30

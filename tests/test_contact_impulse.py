@@ -65,3 +65,13 @@ def test_virtual_coupling_settles_on_the_tracker():
     assert abs(xs[-1] - 0.2) < 1e-3
     # K = 1000, R = 40, m = 0.5: damping ratio 0.89, so almost no overshoot
     assert xs.max() < 0.2 * 1.05
+
+
+def test_a_ball_lying_on_the_table_rests_at_the_default_steps():
+    """One step of gravity at 2 substeps of 60 Hz (0.08 m/s) is above the fixed resting speed: the
+    resting threshold follows the step, so the ball gets resting impulses only and does not hop."""
+    r = 0.04
+    ball = S.SceneObject("ball", "simulated", "metal", (S.sphere(r),), pos=[0, 0, 0.75 + r + 1e-4], mass=0.2)
+    pos, _, st, _ = _run([TABLE, ball], 1.0)
+    assert st.collisions == 0 and st.resting > 0
+    assert np.abs(pos[:, 2] - (0.75 + r)).max() < 1e-3

@@ -1,16 +1,17 @@
 """The driven avatar: convex segments sized like the physics body, IK chains, reach cones.
 
 Schmidl and Lin, "Geometric and kinematic overlap avoidance": the avatar is an articulated driven
-object; its five chains (two arms, two legs, the neck) are solved by CCD (:mod:`kinodyn.contact.ccd`).
+object; its five chains (two arms, two legs, the neck) are solved by CCD (:mod:`kinodyn.ik.ccd`).
 Its segments are the capsules and boxes of :func:`kinodyn.physics.body.build_body` (radii a fraction
 of the standing height, boxes for the feet), so contact and physics see the same body. Each segment
 is one driven :class:`~kinodyn.contact.setting.SceneObject` whose frame is its joint's frame.
 
 Joint limits come from :mod:`kinodyn.limits` (the one specification): hinges keep its axis and range;
-ball joints get a reach cone (Wilhelms and Van Gelder 2001) for the direction of their bone, a
-spherical polygon around the rest direction whose every point lies within the joint's ``max_angle``,
-so a pose inside the cone, with its twist limited as in :mod:`kinodyn.contact.ccd`, is inside the
-limits too.
+ball joints get a reach cone (Wilhelms and Van Gelder 2001) for the direction of their bone
+(:func:`kinodyn.ik.cones.reach_cones`: anatomical, so the same for an arms-down and a T-pose rest
+pose), a spherical polygon whose every point lies within the joint's ``max_angle`` of the rest
+direction, so a pose inside the cone, with its twist limited as in :mod:`kinodyn.ik.cones`, is inside
+the limits too.
 
 Shapes: ``J`` joints, ``S`` segments (one per joint for the built-in humanoid), ``K`` cone vertices.
 """
@@ -24,25 +25,12 @@ import numpy as np
 
 from kinodyn import limits as jl
 from kinodyn.contact.setting import Piece, SceneObject
+from kinodyn.ik.cones import reach_cones
 from kinodyn.kinematics import fk_link
 from kinodyn.math import quat
 from kinodyn.skeleton import Skeleton
 
-__all__ = ["CONE_SHAPES", "CONE_VERTICES", "Avatar", "build_avatar", "cone_boundary", "pose_fk", "segment_poses"]
-
-#: Number of vertices of every reach cone polygon.
-CONE_VERTICES = 8
-_DEG = np.pi / 180.0
-#: Reach-cone radii (deg from the rest direction) at the azimuths forward, forward-out, out,
-#: back-out, back, back-in, in, forward-in, by joint type of :data:`kinodyn.limits.JOINT_TYPES`;
-#: each is capped at that joint's ``max_angle``. Types not listed get a circle of ``max_angle``.
-CONE_SHAPES = {
-    "upper_arm": (175, 175, 175, 90, 60, 40, 35, 120),
-    "thigh": (120, 90, 60, 35, 30, 25, 25, 80),
-    "neck": (55, 50, 45, 45, 45, 45, 45, 50),
-    "head": (55, 50, 45, 45, 45, 45, 45, 50),
-}
-_FORWARD = np.array([1.0, 0.0, 0.0])
+__all__ = ["Avatar", "build_avatar", "pose_fk", "segment_poses"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +48,8 @@ class Avatar:
         exclude: segment pairs ``(i, j)`` that never collide (parent and child, touching at rest, same
             limb).
         limits: the joint limits (:func:`kinodyn.limits.limits_for`).
-        cone_axes: ``(J, 3, 3)`` per joint: rest bone direction, chart x (forward) and chart y (out).
+        cone_axes: ``(J, 4, 3)`` per joint: rest bone direction, cone centre, chart x (forward) and chart
+            y (out) (:func:`kinodyn.ik.cones.reach_cones`).
         cone_points: ``(J, K, 2)`` reach-cone polygon in the azimuthal chart (radians).
     """
 
@@ -107,26 +96,6 @@ def _chains(skeleton: Skeleton, lims) -> tuple[list[np.ndarray], list[int]]:
     return chains, torso
 
 
-def cone_boundary(tname: str, max_angle: float) -> np.ndarray:
-    """Radii ``(K,)`` (rad) of the reach cone of a joint type, capped at ``max_angle``."""
-    deg = np.array(CONE_SHAPES.get(tname, (max_angle / _DEG,) * CONE_VERTICES), dtype=np.float64)
-    return np.minimum(deg * _DEG, max_angle * 0.999)
-
-
-def _cone(skeleton: Skeleton, j: int, lim, rest_pos) -> tuple[np.ndarray, np.ndarray]:
-    d0 = jl.bone_direction(skeleton, j)
-    e1 = _FORWARD - (_FORWARD @ d0) * d0
-    if np.linalg.norm(e1) < 0.3:  # bone along the facing direction (feet): chart x is up
-        e1 = np.array([0.0, 0.0, 1.0]) - d0[2] * d0
-    e1 /= np.linalg.norm(e1)
-    out = 1.0 if rest_pos[j, 1] >= -1e-9 else -1.0  # left side is +Y
-    e2 = np.cross(d0, e1)
-    e2 *= np.sign(e2[1] * out) or 1.0
-    r = cone_boundary(lim.name, lim.max_angle if lim.kind in ("ball", "fixed") else np.pi)
-    az = np.arange(CONE_VERTICES) * 2.0 * np.pi / CONE_VERTICES
-    return np.stack([d0, e1, e2]), np.stack([r * np.cos(az), r * np.sin(az)], axis=1)
-
-
 def build_avatar(skeleton: Skeleton, material: str = "human", name: str = "avatar", mass: float = 70.0) -> Avatar:
     """The avatar of ``skeleton``: segments from the physics body, chains, limits and reach cones."""
     from kinodyn.physics.body import BodyConfig, build_body
@@ -145,11 +114,7 @@ def build_avatar(skeleton: Skeleton, material: str = "human", name: str = "avata
     joint_segment[seg_joint] = np.arange(len(seg_joint))
     lims = jl.limits_for(skeleton)
     chains, _ = _chains(skeleton, lims)
-    rest = skeleton.rest_positions()
-    axes = np.zeros((skeleton.num_joints, 3, 3))
-    pts = np.zeros((skeleton.num_joints, CONE_VERTICES, 2))
-    for j in range(skeleton.num_joints):
-        axes[j], pts[j] = _cone(skeleton, j, lims[j], rest)
+    axes, pts = reach_cones(skeleton, lims)
     limb = np.full(len(seg_joint), -1)
     for c, chain in enumerate(chains):
         s = joint_segment[chain]

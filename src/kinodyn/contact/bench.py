@@ -2,13 +2,16 @@
 beside coal and python-fcl, and CCD beside ikpy.
 
 Everything runs on one core (numba pinned to one thread); times are the thread's CPU time, so other
-work on the machine does not inflate them. Per scenario (``two_arms``,
-``self_collision``, ``two_arms_leg``, ``arm_in_corner``): frames, mean and slowest frame time, joints
+work on the machine does not inflate them. Per scenario (``two_arms``, ``self_collision``,
+``two_arms_leg``, ``arm_in_corner``, and ``walk_into_wall`` when its CMU walk is found through
+``$KINODYN_MOCAP`` or beside the checkout; a note says when it was skipped, and the aggregates then
+leave it out): frames, mean and slowest frame time, joints
 adjusted by IK per frame, CCD iterations per frame, IK share of the frame time, overlapping pairs per
 frame, collision-query share (Table 2's columns). ``max_penetration_mm`` is measured afresh on the
 resolved motions against the fixed objects; ``limit_violations`` counts chain joints outside their
-limits or reach cones in any frame where IK solved (or held) that chain. The narrow phase is timed and checked on analytic cases (sphere,
-box and capsule pairs at known depths, and a sphere on a piece of a CoACD-decomposed mesh) for
+limits or reach cones in any frame where IK solved (or held) that chain. The narrow phase is timed and
+checked on analytic cases (sphere, box and capsule pairs at known depths, and a sphere on a piece of
+a CoACD-decomposed mesh) for
 MuJoCo's ``mj_geomDistance`` (kinodyn's choice), coal and python-fcl, each on the same geometry. CCD is
 timed beside ikpy on the same arm chain and goals.
 """
@@ -22,19 +25,36 @@ import numpy as np
 from kinodyn.bench import BenchResult
 
 SCENARIOS = ("two_arms", "self_collision", "two_arms_leg", "arm_in_corner")
+#: scenarios that play motion capture, run when the data is found (``$KINODYN_MOCAP``)
+MOCAP_SCENARIOS = ("walk_into_wall",)
 DEPTHS = (0.005, 0.02, 0.05, 0.09)
 
 
+def _scenes(res: BenchResult) -> list:
+    """The scenes to run: the avatar scenarios, those with motion capture when it is found, the hand."""
+    from kinodyn.contact.command import with_motion
+    from kinodyn.contact.scenefile import load_scene, scenario_path
+    from kinodyn.errors import KinodynError
+
+    out = [load_scene(scenario_path(n)) for n in SCENARIOS]
+    for name in MOCAP_SCENARIOS:
+        try:
+            out.append(with_motion(load_scene(scenario_path(name))))
+        except KinodynError as e:
+            res.notes[f"skipped_{name}"] = str(e)
+    return out + [load_scene(scenario_path("hand"))]
+
+
 def _scenarios(res: BenchResult, progress) -> None:
-    from kinodyn.contact import ccd
     from kinodyn.contact.command import summary
     from kinodyn.contact.fix import penetration_before
-    from kinodyn.contact.scenefile import load_scene, scenario_path
     from kinodyn.contact.simulate import ContactSimulation
+    from kinodyn.ik import ccd
 
     worst_mean, worst_frame, pen, bad = 0.0, 0.0, 0.0, 0
-    for name in SCENARIOS + ("hand",):
-        scene = load_scene(scenario_path(name))
+    ccd.warm_up()  # the IK kernels too, which the first frames (no contact yet) never call
+    for scene in _scenes(res):
+        name = scene.name
         sim = ContactSimulation(scene)
         for f in range(3):  # load the compiled kernels before timing
             sim.frame(f, {})
@@ -195,7 +215,7 @@ def _narrow(res: BenchResult, quick: bool) -> None:
 
 
 def _ik(res: BenchResult, quick: bool) -> None:
-    from kinodyn.contact import ccd
+    from kinodyn.ik import ccd
     from kinodyn.contact.avatar import build_avatar, pose_fk
     from kinodyn.data.skeleton import humanoid
     from kinodyn.math import quat

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from kinodyn.contact.cones import qmat, qmul, qrot
 from kinodyn.contact.setting import SceneObject
 from kinodyn.errors import ParameterError
+from kinodyn.math.array_kernels import qmat, qmul, qrot
 
 __all__ = ["PROBE_RADIUS", "CollisionWorld", "Contacts", "brute_force_pairs", "sweep_and_prune"]
 

@@ -32,6 +32,11 @@ def add_arguments(p) -> None:
     q.add_argument("--frames", type=int, help="frames to run (default: the whole scenario)")
     q.add_argument("--html", action="store_true", help="also write the viewer page")
     q.add_argument("--png", type=int, default=0, metavar="N", help="also render N frames as PNG")
+    q.add_argument("--motion", help="the avatar's motion file (BVH, AMC, NPZ) instead of the scene's own; a "
+                   "scene that plays motion capture (walk_into_wall: CMU 02_01) needs it unless --mocap or "
+                   "KINODYN_MOCAP names the folder holding the file")
+    q.add_argument("--mocap", metavar="DIR", help="the motion-capture folder a scene's mocap: motion is "
+                   "found in (default: $KINODYN_MOCAP)")
     q.set_defaults(contact=_run)
     q = sub.add_parser("fix", help="resolve a clip against a scene's objects, floor and itself")
     q.add_argument("motion", help="motion file (BVH, AMC, NPZ) or a built-in clip name")
@@ -80,6 +85,24 @@ def summary(result) -> dict:
             "collisions": int(fr["collisions"].sum())}
 
 
+def with_motion(scene, motion=None, mocap=None):
+    """``scene`` with its avatar playing ``motion`` (a file or clip name) when given, and its ``mocap:``
+    motion resolved in the folder ``mocap`` (:func:`kinodyn.contact.scenefile.resolve_motion`)."""
+    from dataclasses import replace
+
+    from kinodyn.contact.scenefile import resolve_motion
+
+    if scene.avatar is None:
+        if motion is not None:
+            raise KinodynError(f"scene {scene.name!r} has no avatar to play --motion {motion}")
+        return scene
+    if motion is not None:
+        if not Path(motion).is_file() and Path(motion).suffix.lower() in (".bvh", ".amc", ".npz"):
+            raise KinodynError(f"--motion {motion}: no such motion file")
+        return replace(scene, avatar=replace(scene.avatar, motion=str(motion)))
+    return replace(scene, avatar=replace(scene.avatar, motion=resolve_motion(scene.avatar.motion, mocap)))
+
+
 def _run(args) -> int:
     from kinodyn.contact.scenefile import load_scene, scenario_path
     from kinodyn.contact.simulate import run_scene
@@ -87,7 +110,7 @@ def _run(args) -> int:
     from kinodyn.io.atomic import atomic_path, atomic_write_bytes
     from kinodyn.progress import progress
 
-    scene = load_scene(scenario_path(args.scenario))
+    scene = with_motion(load_scene(scenario_path(args.scenario)), args.motion, args.mocap)
     if args.frames is not None and args.frames <= 0:
         raise KinodynError(f"--frames must be a positive number of frames, got {args.frames}")
     result = run_scene(scene, args.frames, progress=progress)

@@ -3,8 +3,9 @@
 The avatar loop of :mod:`kinodyn.contact.resolve` run on recorded motion instead of a live tracker:
 segments that pass through the scene's fixed objects or through the body's other limbs are moved out
 by CCD IK within the joint limits and reach cones, the torso by translation, with Algorithm 1's
-interpolation where IK cannot. Frames without overlap are returned as they are (up to the projection
-of the chains into the limits, which the clip may leave).
+interpolation where IK cannot. Frames without overlap are returned as they are, bit for bit
+(:attr:`~kinodyn.contact.resolve.ResolveConfig.keep_free`): the clip may leave the joint limits there,
+and nothing is projected or pulled from the frame before.
 
 Shapes: ``F`` frames, ``J`` joints; metres, degrees in the report.
 """
@@ -31,15 +32,17 @@ def _world(motion: Motion, scene: Scene):
     return avatar, world, first
 
 
-def penetration_before(motion: Motion, scene: Scene) -> np.ndarray:
-    """``(F,)`` deepest overlap (m) of the clip's segments with the scene's fixed objects, as recorded."""
+def penetration_before(motion: Motion, scene: Scene, self_collision: bool = False) -> np.ndarray:
+    """``(F,)`` deepest overlap (m) of the clip's segments with the scene's fixed objects, as recorded;
+    with ``self_collision``, overlaps between the body's own segments count too (those the avatar
+    resolves: not parent and child, not the same limb, not touching at rest)."""
     avatar, world, first = _world(motion, scene)
     objs = np.arange(len(avatar.segments)) + first
     out = np.zeros(motion.num_frames)
     for f in range(motion.num_frames):
         world.set_poses(objs, *segment_poses(avatar, motion.root_pos[f], motion.local_rot[f]))
         c = world.contacts(objs)
-        keep = (c.object_a < first) | (c.object_b < first)
+        keep = (c.object_a < first) | (c.object_b < first) | self_collision
         out[f] = c.depth[keep].max() if keep.any() else 0.0
     return out
 
@@ -54,7 +57,7 @@ def fix_motion(motion: Motion, scene: Scene, config: ResolveConfig | None = None
         interpolation was used), each ``(F,)``.
     """
     avatar, world, first = _world(motion, scene)
-    driver = AvatarDriver(avatar, world, first, motion.fps, config)
+    driver = AvatarDriver(avatar, world, first, motion.fps, config or ResolveConfig(keep_free=True))
     roots, rots = np.array(motion.root_pos), np.array(motion.local_rot)
     rep = {k: np.zeros(motion.num_frames) for k in ("changed_deg", "root_moved_mm", "before_mm", "penetration_mm",
                                                      "iterations", "fallback")}

@@ -10,8 +10,10 @@ negative relative normal velocity ``v_perp = n . v_ab`` (7), resolved by an impu
 so that ``v_perp+ = -e v_perp-`` (8), and a friction impulse ``j_t = -mu j v_t / |v_t|`` (10) that is
 capped where it would stop the sliding, so it never reverses it. Contacts are resolved one at a time
 in a priority queue, most negative ``v_perp`` first, until none approaches. A contact approaching slower
-than ``resting_speed`` is a resting contact and gets ``e = 0`` (the micro-collision treatment of
-resting contact). Driven objects follow their tracker through the virtual coupling spring
+than ``resting_speed``, or than gravity adds in ``resting_steps`` integration steps, is a resting
+contact and gets ``e = 0`` (the micro-collision treatment of resting contact): so an object lying on
+a table does not bounce on the speed one step of gravity gives it, however long the step. Driven
+objects follow their tracker through the virtual coupling spring
 ``m x'' = -K x - R x'`` (6) (``x`` measured from the tracker; K = 1000, R = 40).
 
 Each contact of a convex pair is placed at the centre of its manifold (the witness point and the
@@ -23,13 +25,13 @@ resolved. :class:`Bodies` is the mutable state. Metres, kilograms, seconds; ``(w
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from kinodyn.contact.collide import CollisionWorld
-from kinodyn.contact.cones import cross3, qaxis, qmat, qmul
 from kinodyn.contact.setting import coefficients
+from kinodyn.math.array_kernels import cross3, qaxis, qmat, qmul
 
 __all__ = ["Bodies", "ImpulseConfig", "ImpulseStats", "apply_impulses", "contact_rows", "couple", "step"]
 
@@ -40,18 +42,23 @@ class ImpulseConfig:
 
     Attributes:
         gravity: ``(3,)`` m/s^2.
-        substeps: integration steps per frame.
+        substeps: integration steps per frame. Two are enough: at 60 Hz the rebound (e^2 h) and the
+            sliding block (mu g) stay within 1.5 % and 0.1 % of their analytic values, as with eight;
+            one step lets a sliding block stick (resting contacts then eat its friction).
         margin: distance within which two pieces are in contact (m).
         resting_speed: approach speed below which a contact is resting (e = 0), m/s.
+        resting_steps: ... or below the speed gravity adds in this many steps (at 2 substeps of 60 Hz,
+            0.12 m/s; at 8 substeps ``resting_speed`` is the larger).
         toi_depth: overlap that stops a step at the time of impact (m).
         max_impulses: impulses per resolution before giving up.
         coupling_k, coupling_r: virtual coupling stiffness (N/m) and damping (N s/m) (equation 6).
     """
 
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
-    substeps: int = 8
+    substeps: int = 2
     margin: float = 5e-4
     resting_speed: float = 0.08
+    resting_steps: float = 1.5
     toi_depth: float = 1e-3
     max_impulses: int = 200
     coupling_k: float = 1000.0
@@ -226,6 +233,9 @@ def step(bodies: Bodies, dt: float, cfg: ImpulseConfig, stats: ImpulseStats) -> 
     if not len(sim):
         return
     world, g = bodies.world, np.asarray(cfg.gravity, float)
+    resting = cfg.resting_steps * float(np.linalg.norm(g)) * dt
+    if resting > cfg.resting_speed:
+        cfg = replace(cfg, resting_speed=resting)
     left = dt
     for _ in range(8):
         rows = contact_rows(bodies, cfg, sim)

@@ -76,16 +76,16 @@ SCENARIO_MOTIONS = {"push_kick": _push_kick, "cross_arms": _cross_arms}
 
 
 def scenario_motion(name: str) -> Motion:
-    """A scenario motion, a library clip, or a motion file (BVH, AMC, NPZ)."""
+    """A scenario motion, a library clip, or a motion file (BVH, AMC, NPZ; an added T-pose frame 0, as
+    in the cgspeed CMU files, is dropped: :func:`kinodyn.io.drop_added_tpose`)."""
     from pathlib import Path
 
     if name in SCENARIO_MOTIONS:
         return SCENARIO_MOTIONS[name]()
     if Path(name).suffix.lower() in (".bvh", ".amc", ".npz"):
-        from kinodyn.io import load
+        from kinodyn.io import drop_added_tpose, load
 
-        m = load(name)
-        return m[1:] if m.num_frames > 2 and "cmu" in Path(name).name.lower() else m
+        return drop_added_tpose(load(name))[0]  # a converter's added T-pose frame is not capture
     from kinodyn.data import library
 
     return _clip(name)() if name in library.names() else _unknown(name)

@@ -8,7 +8,7 @@ attraction of Boulic and Thalmann):
    by its global penetration depth (equation 1);
 2. chains (arms, legs, neck) in random order: find the penetrating link ``i`` nearest the chain's
    root, its end effector at the mean of its contacts (equation 2), the goal pushed out of the
-   obstacle by the link's global depth (equation 3), and CCD (:func:`kinodyn.contact.ccd.ccd_solve`)
+   obstacle by the link's global depth (equation 3), and CCD (:func:`kinodyn.ik.ccd.ccd_solve`)
    from link ``i`` inwards; a link lying along the surface is moved out by translation and the parent
    chain reconnected; repeat until no link penetrates. Obstacles are fixed objects and the avatar's
    own other chains and torso (self-collision);
@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinodyn.contact.avatar import Avatar, pose_fk, segment_poses
-from kinodyn.contact.ccd import CCDConfig, ccd_solve, chain_fk, chain_limits, project_chain
 from kinodyn.contact.collide import CollisionWorld
-from kinodyn.contact.cones import qmul, qrot
 from kinodyn.contact.depth import global_depth, interpolate_back
+from kinodyn.ik.ccd import CCDConfig, ccd_solve, chain_fk, chain_limits, project_chain
 from kinodyn.math import quat
+from kinodyn.math.array_kernels import qmul, qrot
 
 __all__ = ["AvatarDriver", "FrameStats", "ResolveConfig"]
 
@@ -49,7 +49,15 @@ class ResolveConfig:
             chains press on each other (self-collision: 7 instead of 11 per frame).
         tolerance: overlap that counts as none (m).
         attraction_halflife: halflife of the pull from the last solved pose to the tracked one (s).
+        release_angle: a chain pulled back toward the tracked angles is released (takes them as they
+            are) once no joint of it is further from them than this (rad).
         self_collision: chains also avoid the avatar's other chains and torso.
+        sweep_step: once the torso has been held off the tracked root, the way from where it was held
+            to the tracked root is checked in steps this long (m; less than the thinnest wall).
+        keep_free: a tracked pose that overlaps nothing is taken as it is, even right after a frame
+            that IK changed (no attraction from the last solved pose): what cleaning recorded motion
+            wants, so that frames without overlap stay bit-identical. Live tracking leaves it off, so
+            that limbs leaving an obstacle are pulled back to the tracked angles instead of popping.
         seed: seed of the random chain order.
     """
 
@@ -60,7 +68,10 @@ class ResolveConfig:
     skin: float = 2e-3
     tolerance: float = 2e-4
     attraction_halflife: float = 0.03
+    release_angle: float = 1e-4
     self_collision: bool = True
+    sweep_step: float = 0.05
+    keep_free: bool = False
     seed: int = 0
 
 
@@ -103,6 +114,7 @@ class AvatarDriver:
         self.limits = [chain_limits(avatar.limits, avatar.cone_axes, avatar.cone_points, c) for c in avatar.chains]
         self.solved = None  # (root_pos, local_rot) of the last frame
         self.free = None  # last pose without overlap
+        self.held_back = False  # the last frame's root was moved off the tracked one
         self.active = np.zeros(len(avatar.chains), bool)
         self.stats = FrameStats()
 
@@ -137,6 +149,9 @@ class AvatarDriver:
         self.stats = FrameStats()
         root = np.array(root_pos, dtype=np.float64)
         q = np.array(local_rot, dtype=np.float64)
+        tracked_q = np.array(q)
+        if self.cfg.keep_free and self.active.any() and self._free_as_tracked(root, q):
+            return root, q, self.stats
         if self.solved is not None:
             alpha = 1.0 - 0.5 ** (1.0 / (self.fps * self.cfg.attraction_halflife))
             for c, chain in enumerate(self.avatar.chains):
@@ -145,8 +160,12 @@ class AvatarDriver:
         for c, chain in enumerate(self.avatar.chains):
             if self.active[c]:  # still held by IK: inside its limits and cones from here on
                 q[chain] = project_chain(q[chain], self.limits[c])
+        tracked_root = root
+        if self.held_back:  # from where the torso was held, not straight to the tracked root
+            root = self._sweep_torso(self.solved[0], root, q)
         self._place(root, q)
         root = self._torso(root, q)
+        self.held_back = bool(np.any(root != tracked_root))
         held = self.active.copy()
         self.active[:] = False
         pen = None
@@ -169,10 +188,45 @@ class AvatarDriver:
             self.stats.fallback = True
         self.stats.penetration = pen
         self.stats.solved = tuple(int(c) for c in np.nonzero(self.active | held)[0])
+        for c in np.nonzero(held & ~self.active)[0]:  # held, not solved: still pulled back next frame
+            chain = self.avatar.chains[c]
+            self.active[c] = quat.angle_between(q[chain], tracked_q[chain]).max() > self.cfg.release_angle
         self.solved = (root.copy(), q.copy())
         if pen <= self.cfg.tolerance:
             self.free = (root.copy(), q.copy())
         return root, q, self.stats
+
+    def _free_as_tracked(self, root, q) -> bool:
+        """Whether the tracked pose overlaps nothing; if so it becomes the last solved and free pose."""
+        self._place(root, q)
+        if self._deepest() > self.cfg.tolerance:
+            return False
+        self.active[:] = False
+        self.held_back = False
+        self.solved = self.free = (root.copy(), q.copy())
+        return True
+
+    def _torso_depth(self, root, q) -> float:
+        self._place(root, q)
+        c, rows = self._contacts(self.objs[self.avatar.torso])
+        rows = rows[self.obstacle[c.object_b[rows]]]
+        return float(c.depth[rows].max()) if len(rows) else 0.0
+
+    def _sweep_torso(self, start, root, q) -> np.ndarray:
+        """The root moved from ``start`` (last frame's, held off the tracked one) toward ``root`` until
+        the torso first touches a fixed object: Algorithm 1's interpolation along the way, marched in
+        steps of :attr:`ResolveConfig.sweep_step` so that the torso is never carried through a wall it
+        was held against (a tracked root that has gone through would otherwise be taken as free)."""
+        way = root - start
+        n = max(1, int(np.ceil(np.linalg.norm(way) / self.cfg.sweep_step)))
+        tol = self.cfg.tolerance
+        t = 1.0
+        for k in range(1, n + 1):
+            if self._torso_depth(start + (k / n) * way, q) > tol:
+                t = interpolate_back(lambda s: self._torso_depth(start + s * way, q), (k - 1) / n, k / n,
+                                     iterations=8, tolerance=tol)
+                break
+        return start + t * way
 
     def _torso(self, root, q) -> np.ndarray:
         torso = self.objs[self.avatar.torso]

@@ -25,7 +25,9 @@ A scene file (see ``kinodyn/contact/scenes/*.yaml`` for the shipped ones) is a m
         scale: 1.0                      # mesh scale
     avatar:                             # the driven avatar (optional)
       motion: push                      # a built-in clip, a scenario motion of kinodyn.contact.motions,
-                                        #   or a motion file (BVH, AMC, NPZ) relative to the scene file
+                                        #   or a motion file (BVH, AMC, NPZ) relative to the scene file,
+                                        #   or mocap:REL, a file of the user's motion-capture folder
+                                        #   (see mocap_folder; `contact run --motion PATH` overrides)
       place: [0, 0, 0]                  # x, y (m) and heading (deg) of the clip's first frame
       material: human
       self_collision: true
@@ -34,11 +36,13 @@ A scene file (see ``kinodyn/contact/scenes/*.yaml`` for the shipped ones) is a m
       mass: 0.5                         # kg, for the virtual coupling (K = 1000, R = 40)
 
 Errors are :class:`kinodyn.errors.FileFormatError` naming the file and the entry
-(``objects[3] 'table': ...``).
+(``objects[3] 'table': ...``). Motion-capture data is never shipped: a ``mocap:`` motion is looked up
+when the scene is run (:func:`resolve_motion`), so listing and parsing scenes works without it.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,12 +58,16 @@ __all__ = [
     "HandSpec",
     "Scene",
     "load_scene",
+    "mocap_folder",
     "parse_scene",
+    "resolve_motion",
     "scenario_names",
     "scenario_path",
     "scenes_dir",
 ]
 
+#: prefix of a scene's avatar motion that names a file of the user's motion-capture folder
+MOCAP_PREFIX = "mocap:"
 _TOP = {"name", "description", "fps", "frames", "include", "objects", "avatar", "hand"}
 _OBJ = {"name", "kind", "material", "pos", "rot", "quat", "mass", "velocity", "shape", "pieces", "mesh", "scale"}
 
@@ -120,6 +128,37 @@ def scenario_path(name_or_path) -> Path:
 
         raise UnknownNameError(f"no scenario named {name_or_path!r}; scenarios: {', '.join(scenario_names())}")
     return q
+
+
+def mocap_folder(folder=None) -> Path | None:
+    """The motion-capture folder ``mocap:`` motions are found in: ``folder`` when given, else
+    ``$KINODYN_MOCAP``, else ``shared/mocap`` beside the repository checkout; None when there is none."""
+    if folder is None and os.environ.get("KINODYN_MOCAP"):
+        folder = os.environ["KINODYN_MOCAP"]
+    if folder is not None:
+        return Path(folder).expanduser() if Path(folder).expanduser().is_dir() else None
+    here = Path(__file__).resolve()
+    guess = here.parents[4] / "shared" / "mocap" if len(here.parents) > 4 else None  # src/kinodyn/contact/
+    return guess if guess is not None and guess.is_dir() else None
+
+
+def resolve_motion(motion: str, folder=None) -> str:
+    """The motion name or file a scene's avatar plays: ``mocap:REL`` becomes the file ``REL`` of
+    :func:`mocap_folder` (a clear error when the folder or the file is missing); anything else is
+    returned as it is."""
+    if not motion.startswith(MOCAP_PREFIX):
+        return motion
+    rel = motion[len(MOCAP_PREFIX):].strip()
+    root = mocap_folder(folder)
+    hint = "pass --motion PATH to the file, or set KINODYN_MOCAP to the folder that holds it"
+    if root is None:
+        asked = folder if folder is not None else os.environ.get("KINODYN_MOCAP")
+        where = f"the folder {asked} is not there" if asked else "KINODYN_MOCAP is not set"
+        raise KinodynError(f"this scene plays the motion-capture file {rel}, but {where}: {hint}")
+    path = root / rel
+    if not path.is_file():
+        raise KinodynError(f"this scene plays the motion-capture file {rel}, not found in {root}: {hint}")
+    return str(path)
 
 
 def _err(path, where: str, msg: str) -> FileFormatError:
@@ -231,7 +270,7 @@ def _avatar(spec, base: Path, path) -> AvatarSpec:
     if not isinstance(spec, dict) or "motion" not in spec:
         raise _err(path, where, "must be a mapping with a motion (a clip name or a motion file)")
     motion = str(spec["motion"])
-    if Path(motion).suffix.lower() in (".bvh", ".amc", ".npz"):
+    if Path(motion).suffix.lower() in (".bvh", ".amc", ".npz") and not motion.startswith(MOCAP_PREFIX):
         full = Path(motion).expanduser()
         full = full if full.is_absolute() else base / full
         motion = str(full)

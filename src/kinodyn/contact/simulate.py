@@ -23,7 +23,7 @@ from kinodyn.contact.collide import CollisionWorld
 from kinodyn.contact.impulse import Bodies, ImpulseConfig, ImpulseStats, couple, step
 from kinodyn.contact.overlap import OverlapConfig, remove_overlap
 from kinodyn.contact.resolve import AvatarDriver, ResolveConfig
-from kinodyn.contact.scenefile import Scene
+from kinodyn.contact.scenefile import Scene, resolve_motion
 from kinodyn.motion import Motion
 
 __all__ = ["FRAME_KEYS", "ContactSimulation", "RunResult", "SimulationConfig", "run_scene"]
@@ -82,7 +82,7 @@ class ContactSimulation:
         exclude = []
         self.avatar, self.first = None, len(objects)
         if scene.avatar is not None:
-            m = motions.scenario_motion(scene.avatar.motion)
+            m = motions.scenario_motion(resolve_motion(scene.avatar.motion))
             x, y, h = scene.avatar.place
             self.tracked = m.aligned_to(np.array([x, y, np.deg2rad(h)]), 0)
             if scene.fps and abs(scene.fps - m.fps) > 1e-9:

@@ -5,7 +5,8 @@ support constraints), so that no kernel writes the quaternion algebra out again.
 (:mod:`kinodyn.kinematics`) is the one exception: its link is written once for numpy and numba alike,
 so that small motions are posed without importing numba. They take and return plain floats (tuples), are inlined into their callers and follow the
 conventions of :mod:`kinodyn.math.quat`: quaternions ``(w, x, y, z)``, ``R(q) v`` the rotation of a
-column vector. The array versions (numpy, batch-first) are in :mod:`kinodyn.math.quat`.
+column vector. The array versions (numpy, batch-first) are in :mod:`kinodyn.math.quat`; compiled kernels
+that keep one quaternion in a ``(4,)`` array use :mod:`kinodyn.math.array_kernels`.
 
 Each kernel keeps the exact operation order its callers had, so compiled results do not change by
 a rounding.

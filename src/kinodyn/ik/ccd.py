@@ -10,12 +10,13 @@ chain's root turns about its axis ``a_h`` (origin ``o_h``) by the angle between 
 
 A hinge (elbow, knee) has one axis and a range; a ball joint is three planar joints with a common
 centre (the parent frame's axes) whose result is projected back into its reach cone
-(:mod:`kinodyn.contact.cones`). Sweeps repeat until ``|ee - goal|`` is within the tolerance. The
+(:mod:`kinodyn.ik.cones`). Sweeps repeat until ``|ee - goal|`` is within the tolerance. The
 special case of a link lying along the surface moves the link's origin instead and keeps the link's
 world orientation ("reconnect limb i-1").
 
 :func:`ccd_solve` is the public, self-contained solver (arrays in, :class:`IKResult` out); the avatar
-loop that finds the links, end effectors and goals is :mod:`kinodyn.contact.resolve`.
+loop that finds the links, end effectors and goals is :mod:`kinodyn.contact.resolve`; scene
+generation reuses the solver on its own chains.
 Shapes: ``n`` chain joints, ``K`` cone vertices; metres, radians, rotations ``(w, x, y, z)``.
 """
 
@@ -27,9 +28,10 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from kinodyn.contact.cones import KIND_BALL, KIND_FIXED, KIND_HINGE, project_joint, qaxis, qmul, qrot
 from kinodyn.errors import ParameterError
+from kinodyn.ik.cones import KIND_BALL, KIND_FIXED, KIND_HINGE, cone_contains, project_joint
 from kinodyn.kinematics import fk_link
+from kinodyn.math.array_kernels import qaxis, qmul, qrot
 
 __all__ = [
     "CCDConfig",
@@ -41,6 +43,7 @@ __all__ = [
     "chain_limits",
     "limits_hold",
     "project_chain",
+    "warm_up",
 ]
 
 
@@ -77,7 +80,8 @@ class ChainLimits:
         axis: ``(n, 3)`` hinge axes (local frames).
         lower, upper: ``(n,)`` hinge ranges (rad).
         max_angle: ``(n,)`` bound of the total rotation of ball and fixed joints (rad).
-        axes: ``(n, 3, 3)`` reach-cone rest direction and chart axes; poly: ``(n, K, 2)`` cone polygons.
+        axes: ``(n, 4, 3)`` reach-cone rest direction, centre and chart axes; poly: ``(n, K, 2)`` cone
+            polygons (:func:`kinodyn.ik.cones.reach_cones`).
     """
 
     kind: np.ndarray
@@ -106,7 +110,7 @@ class IKResult:
 
 def chain_limits(limits, cone_axes, cone_points, joints) -> ChainLimits:
     """:class:`ChainLimits` of ``joints (n,)`` from :func:`kinodyn.limits.limits_for` rows and an
-    avatar's cones (``cone_axes (J, 3, 3)``, ``cone_points (J, K, 2)``)."""
+    avatar's cones (``cone_axes (J, 4, 3)``, ``cone_points (J, K, 2)``)."""
     joints = np.asarray(joints, dtype=np.int64)
     rows = [limits[j] for j in joints]
     kind = np.array([KIND_HINGE if r.kind == "hinge" else KIND_FIXED if r.kind == "fixed" else KIND_BALL
@@ -229,8 +233,6 @@ def project_chain(local_rot, limits: ChainLimits) -> np.ndarray:
 def limits_hold(local_rot, limits: ChainLimits, tol: float = 1e-6) -> np.ndarray:
     """``(n,)`` True where a chain joint is inside its limits (hinge range and axis, total angle) and
     reach cone: the check the tests and the benchmark count violations with."""
-    from kinodyn.contact.cones import cone_contains
-
     q = np.asarray(local_rot, dtype=np.float64).reshape(-1, 4)
     ok = np.ones(len(q), dtype=bool)
     for h in range(len(q)):
@@ -246,3 +248,19 @@ def limits_hold(local_rot, limits: ChainLimits, tol: float = 1e-6) -> np.ndarray
             if limits.kind[h] == KIND_BALL:
                 ok[h] &= bool(cone_contains(qh, limits.axes[h], limits.poly[h]))
     return ok
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every kernel of the solver on a two-joint chain, so that a
+    timed loop does not pay for it at its first contact."""
+    kind = np.array([KIND_BALL, KIND_HINGE], dtype=np.int64)
+    rest_down = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    az = np.arange(8) * np.pi / 4
+    octagon = np.stack([np.cos(az), np.sin(az)], axis=1)
+    lim = ChainLimits(kind, np.tile([0.0, 1.0, 0.0], (2, 1)), np.zeros(2), np.array([0.0, 2.5]), np.full(2, 2.0),
+                      np.tile(rest_down, (2, 1, 1)), np.tile(octagon, (2, 1, 1)))
+    offs = np.array([[0.0, 0.2, 0.0], [0.0, 0.0, -0.3]])
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (2, 1))
+    r = ccd_solve(np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), offs, q, 1, np.array([0.0, 0.0, -0.3]),
+                  np.array([0.2, 0.2, -0.4]), lim)
+    limits_hold(project_chain(r.local_rot, lim), lim)

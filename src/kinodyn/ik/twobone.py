@@ -1,4 +1,4 @@
-"""Inverse kinematics shared by the clips, the foot lock and (later) contact: two-bone chains.
+"""Two-bone inverse kinematics for the clips and the foot lock.
 
 Two analytic two-bone solvers, the closed-form solution of a two-link chain (the law of cosines gives
 the middle joint's bend), in the two forms kinodyn needs:
@@ -13,7 +13,7 @@ the middle joint's bend), in the two forms kinodyn needs:
   analytic solver of Daniel Holden's Motion-Matching code, skeleton-agnostic, on world positions and
   rotations from forward kinematics; :func:`two_bone_delta_kernel` is its compiled scalar form.
 
-Iterative solvers for longer chains (cyclic coordinate descent, for contact) belong here too.
+The iterative solver for longer chains is :mod:`kinodyn.ik.ccd`.
 
 Shapes: ``(..., 3)`` points and directions, ``(..., 4)`` quaternions ``(w, x, y, z)``; every function
 broadcasts over the leading axes (frames, poses). Lengths in metres, angles in radians.
