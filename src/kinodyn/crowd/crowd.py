@@ -193,7 +193,8 @@ class Crowd:
         self.side_weight = np.zeros(n)
         self.posing = pose
         j = self.keyframes.key_rot.shape[1]
-        self.local_rot, self.root_pos = np.zeros((n, j, 4)), np.zeros((n, 3))
+        # float32 rotations: shown (and recorded) poses need no more, and the sum runs twice as wide
+        self.local_rot, self.root_pos = np.zeros((n, j, 4), np.float32), np.zeros((n, 3))
         self.local_rot[..., 0] = 1.0
         #: ``(N, 4)`` each body's current point of Q (Theta_x, Theta_z, D_x, D_z), set by posing.
         self.points = np.zeros((n, 4))
@@ -205,7 +206,7 @@ class Crowd:
         #: MuJoCo, posing), accumulated; reset it to measure a stretch.
         self.timings = {"control": 0.0, "physics": 0.0, "posing": 0.0}
         self.state, self._on_floor = rigid_state_fast(self._qpos, self._qvel, body, config.on_floor_margin)
-        self._work = scratch(n)
+        self._work = scratch(n, np.float32)
         if pose:
             self._pose()
 

@@ -151,12 +151,13 @@ def _accumulate(i, m, idx, wts, aligned, key_root, out_rot, out_root):
 
 
 @lru_cache(maxsize=8)
-def aligned_keys(ks: KeyframeSet) -> np.ndarray:
+def aligned_keys(ks: KeyframeSet, dtype=np.float64) -> np.ndarray:
     """``(K, K, J * 4)``: row ``[r, k]`` holds keyframe ``k``'s joint rotations, each negated where its
-    dot product with keyframe ``r``'s is negative (the same rotation on ``r``'s hemisphere)."""
+    dot product with keyframe ``r``'s is negative (the same rotation on ``r``'s hemisphere), as
+    ``dtype``."""
     rot = np.asarray(ks.key_rot, np.float64)
     sign = np.where(np.einsum("rjc,kjc->rkj", rot, rot) >= 0.0, 1.0, -1.0)
-    out = (sign[..., None] * rot[None]).reshape(rot.shape[0], rot.shape[0], -1)
+    out = (sign[..., None] * rot[None]).reshape(rot.shape[0], rot.shape[0], -1).astype(dtype)
     out.setflags(write=False)
     return out
 
@@ -252,10 +253,11 @@ def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
     return rot, root
 
 
-def scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
+def scratch(n: int, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
     """Working arrays of the compiled interpolation for ``n`` points: term indices ``(n, MAX_TERMS)``
-    and weights (a caller posing every frame keeps them)."""
-    return np.empty((n, MAX_TERMS), np.int64), np.empty((n, MAX_TERMS))
+    and weights of ``dtype``, the precision of the rotations it sums (a caller posing every frame keeps
+    them)."""
+    return np.empty((n, MAX_TERMS), np.int64), np.empty((n, MAX_TERMS), dtype)
 
 
 def interpolate_prepared(ks: KeyframeSet, points, bweights, side_weight, work, out, frame) -> None:
@@ -265,12 +267,15 @@ def interpolate_prepared(ks: KeyframeSet, points, bweights, side_weight, work, o
         points: ``(N, 4)`` float64, phases already in ``[0, 1)``.
         bweights: ``(N, B)`` float64 rows summing to 1.
         side_weight: ``(N,)`` float64 in ``[0, 1]``.
-        work: :func:`scratch` arrays for N.
-        out: ``(rot (N, J, 4), root (N, 3))`` C-contiguous float64, filled.
+        work: :func:`scratch` arrays for N; the dtype of their weights (float64 or float32) is the
+            precision of the rotations summed.
+        out: ``(rot (N, J, 4), root (N, 3))`` C-contiguous, filled: ``rot`` of the weights' dtype
+            (float32 poses agree with :func:`interpolate` to about 1e-7), ``root`` float64.
         frame: ``(body_pos (N, 3), body_quat (N, 4))`` C-contiguous float64.
     """
     rot, root = out
-    _interp_kernel(points, bweights, side_weight, TILT_SCALE, PHASE_SCALE, ks.key_root, aligned_keys(ks),
+    aligned = aligned_keys(ks, work[1].dtype.type)
+    _interp_kernel(points, bweights, side_weight, TILT_SCALE, PHASE_SCALE, ks.key_root, aligned,
                    ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start, ks.plane_count,
                    work[0], work[1], rot.reshape(rot.shape[0], -1), root, frame[0], frame[1], True)
 
