@@ -13,7 +13,8 @@
   no posing (the bodies topple and lie), measured in the same run at the same count;
 * ``us_per_character_frame_N`` and ``bare_us_per_character_frame_N`` for each scaling count N (100 to
   10,000; the quick mode stops lower and reports only what it measured), ``contacts_per_character_N``
-  and ``compile_s_N`` (wall seconds MuJoCo takes to build the model of N bodies);
+  and ``compile_s_N`` (wall seconds to build the crowd of N: from 1,000 up almost all of it MuJoCo
+  compiling the model; the first count also loads the keyframes and compiled kernels);
 * ``observer_accuracy_pos``, ``_dir``, ``_height``, ``_strength``: the automatic observer of the
   impact experiment (:mod:`kinodyn.crowd.impacts`), trained on other seeds, next to the paper's human
   subjects (0.73, 0.78, 0.54, 0.88) in ``baseline``.
@@ -26,8 +27,9 @@ they share; numba runs on one thread.
 Building the model is not part of the timings. It grows quadratically with the number of free bodies:
 MuJoCo's compiler (``mj_setConst``) computes each body's and each joint's inverse inertia at the
 initial pose with a dense Jacobian and a solve over all ``6 N`` degrees of freedom, which is
-``O(N^2)`` for N independent bodies (about 11 s for 5,000 and 45 s for 10,000 here); the crowd
-cannot skip it, so the full run measures each count once and ``compile_s_N`` reports it.
+``O(N^2)`` for N independent bodies (11 s for 5,000 on an idle core; doubling N quadruples it). It
+is MuJoCo's own work, which a crowd cannot skip; the full run builds each count once (the bare arm
+reuses the crowd's model) and ``compile_s_N`` reports it.
 """
 
 from __future__ import annotations
