@@ -280,7 +280,8 @@ class Crowd:
             t2 = time.thread_time()
             self.time += self.dt
             self.frame += 1
-            self.state, self._on_floor = s, _ = rigid_state_fast(self._qpos, self._qvel, body, cfg.on_floor_margin)
+            s, self._on_floor = rigid_state_fast(self._qpos, self._qvel, body, cfg.on_floor_margin)
+            self.state = s
             self.d_side, self.d_front = travel(self.d_side, self.d_front, s.vel, s.forward, s.left, self.dt)
             if self.frame % 30 == 0 and not np.all(np.isfinite(self._qpos)):
                 bad = int(np.flatnonzero(~np.all(np.isfinite(self._qpos), axis=1))[0])
@@ -300,12 +301,12 @@ class Crowd:
     def _pose(self) -> None:
         """Map every body's state into Q and pose it from the keyframe set in its frame Sr (section 5)."""
         s, cfg = self.state, self.config
+        bw, sw = self.behaviour_weights, self.side_weight
         _pose_inputs(s.theta_x, s.theta_z, s.vel, s.forward, s.left, self.d_side, self.d_front,
                      self.keyframes.stride, self.control_state.mode, self._v_target, self._stand_b, self.dt,
-                     cfg.behaviour_ease, cfg.side_halflife, cfg.still_speed, self.points, self.behaviour_weights,
-                     self.side_weight)
-        interpolate_prepared(self.keyframes, self.points, self.behaviour_weights, self.side_weight, self._work,
-                             (self.local_rot, self.root_pos), (s.r, s.quat))
+                     cfg.behaviour_ease, cfg.side_halflife, cfg.still_speed, self.points, bw, sw)
+        interpolate_prepared(self.keyframes, self.points, bw, sw, self._work, (self.local_rot, self.root_pos),
+                             (s.r, s.quat))
 
     # ------------------------------------------------------------------ recording
     def start_recording(self) -> None:

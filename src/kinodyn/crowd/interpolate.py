@@ -141,7 +141,8 @@ def _accumulate(i, m, idx, wts, aligned, key_root, out_rot, out_root):
         for c in range(3):
             out_root[i, c] += w * key_root[k, c]
     for j in range(0, nj4, 4):
-        nrm = np.sqrt(out_rot[i, j] ** 2 + out_rot[i, j + 1] ** 2 + out_rot[i, j + 2] ** 2 + out_rot[i, j + 3] ** 2)
+        q0, q1, q2, q3 = out_rot[i, j], out_rot[i, j + 1], out_rot[i, j + 2], out_rot[i, j + 3]
+        nrm = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         if nrm < 1e-12:
             out_rot[i, j], out_rot[i, j + 1], out_rot[i, j + 2], out_rot[i, j + 3] = 1.0, 0.0, 0.0, 0.0
         else:
@@ -248,8 +249,8 @@ def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
         if fpos.shape != (n, 3) or fquat.shape != (n, 4):
             raise ParameterError(f"frame must be ((N, 3), (N, 4)) arrays for N = {n}, got {fpos.shape}, {fquat.shape}")
     _interp_kernel(pts, bw, np.ascontiguousarray(sw), float(tilt_scale), float(phase_scale), ks.key_root,
-                   aligned_keys(ks), ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start,
-                   ks.plane_count, idx, wts, rot.reshape(n, -1), root, fpos, fquat, in_frame)
+                   aligned_keys(ks), ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count,
+                   ks.plane_start, ks.plane_count, idx, wts, rot.reshape(n, -1), root, fpos, fquat, in_frame)
     return rot, root
 
 
@@ -276,8 +277,9 @@ def interpolate_prepared(ks: KeyframeSet, points, bweights, side_weight, work, o
     rot, root = out
     aligned = aligned_keys(ks, work[1].dtype.type)
     _interp_kernel(points, bweights, side_weight, TILT_SCALE, PHASE_SCALE, ks.key_root, aligned,
-                   ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start, ks.plane_count,
-                   work[0], work[1], rot.reshape(rot.shape[0], -1), root, frame[0], frame[1], True)
+                   ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start,
+                   ks.plane_count, work[0], work[1], rot.reshape(rot.shape[0], -1), root, frame[0], frame[1],
+                   True)
 
 
 def _behaviour_weights(behaviour, n: int, nb: int) -> np.ndarray:
