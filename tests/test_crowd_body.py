@@ -84,3 +84,27 @@ def test_bad_body_config():
         BodyConfig(depth=0.8)
     with pytest.raises(ParameterError, match="com_height must lie in"):
         BodyConfig(com_height=2.0)
+
+
+def test_compiled_state_equals_the_numpy_one():
+    """The crowd's compiled pass against :func:`rigid_state` and :func:`support_height` on random
+    states, upright, tilted and fallen."""
+    from kinodyn.crowd.body import rigid_state_fast
+
+    cfg = BodyConfig()
+    rng = np.random.default_rng(3)
+    n = 2000
+    q = quat.normalize(rng.normal(size=(n, 4)) * [1.0, 0.4, 0.4, 1.0])
+    q[: n // 4] = quat.normalize(rng.normal(size=(n // 4, 4)))  # any rotation, fallen ones too
+    r = rng.uniform(-5, 5, (n, 3))
+    r[:, 2] = rng.uniform(0.0, 1.0, n)
+    qpos, qvel = np.concatenate([r, q], axis=1), rng.normal(size=(n, 6))
+    ref = rigid_state(qpos, qvel)
+    got, on_floor = rigid_state_fast(qpos, qvel, cfg, 0.04)
+    for name in ("r", "quat", "heading", "theta_x", "theta_z", "vel", "omega", "forward", "left", "up"):
+        np.testing.assert_allclose(getattr(got, name), getattr(ref, name), atol=1e-12, err_msg=name)
+    expect = r[:, 2] < support_height(cfg, ref.theta_x, ref.theta_z) + 0.04
+    assert 0.1 < expect.mean() < 0.9
+    np.testing.assert_array_equal(on_floor, expect)
+    qpos[0, 2] = 7.0
+    assert rigid_state_fast(qpos, qvel, cfg, 0.04)[0].r[0, 2] == 7.0, "the state is read afresh"

@@ -63,6 +63,6 @@ def test_bench_measures_each_part_at_the_count():
     from kinodyn.crowd.bench import measure
 
     r = measure(20, frames=5, warmup=2)
-    assert set(r) >= {"physics", "posing", "control", "total", "contacts_per_character", "bare"}
+    assert set(r) >= {"physics", "posing", "control", "total", "contacts_per_character", "bare", "compile"}
     assert r["total"] == pytest.approx(r["physics"] + r["posing"] + r["control"])
     assert r["bare"] > 0

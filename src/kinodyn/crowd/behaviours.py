@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from kinodyn.crowd.body import RigidState
@@ -33,6 +34,7 @@ __all__ = [
     "AIConfig",
     "AIState",
     "decide",
+    "decide_fast",
     "new_ai",
 ]
 
@@ -114,4 +116,48 @@ def decide(ai: AIState, s: RigidState, cfg: AIConfig, dt: float) -> tuple[np.nda
     v[fl] = v_fl
     moving = np.linalg.norm(v, axis=1) > 0.15
     heading = np.where(moving, np.arctan2(v[:, 1], v[:, 0]), s.heading)
+    return v, heading
+
+
+@numba.njit(cache=True, inline="always")
+def _toward1(dx, dy, speed, slow):
+    dist = np.sqrt(dx * dx + dy * dy)
+    gain = min(1.0, dist / slow) * speed / max(dist, 1e-9)
+    return dx * gain, dy * gain
+
+
+@numba.njit(cache=True)
+def _decide_kernel(kind, target, leader, speed, wander, noise, pos, forward, heading, arrive, follow, flee,
+                   v, out_heading):
+    k_noise = 0
+    for i in range(kind.shape[0]):
+        vx, vy = 0.0, 0.0
+        k = kind[i]
+        if k == GOTO:
+            vx, vy = _toward1(target[i, 0] - pos[i, 0], target[i, 1] - pos[i, 1], speed[i], arrive)
+        elif k == WANDER:
+            wander[i] += noise[k_noise]
+            k_noise += 1
+            vx, vy = speed[i] * np.cos(wander[i]), speed[i] * np.sin(wander[i])
+        elif k == FOLLOW:
+            j = leader[i]
+            bx, by = pos[j, 0] - follow * forward[j, 0], pos[j, 1] - follow * forward[j, 1]
+            vx, vy = _toward1(bx - pos[i, 0], by - pos[i, 1], speed[i] * 1.2, arrive)
+        elif k == FLEE:
+            ax, ay = pos[i, 0] - target[i, 0], pos[i, 1] - target[i, 1]
+            dist = np.sqrt(ax * ax + ay * ay)
+            if dist < flee:
+                g = 1.5 * speed[i] / max(dist, 1e-9)
+                vx, vy = ax * g, ay * g
+        v[i, 0], v[i, 1] = vx, vy
+        out_heading[i] = np.arctan2(vy, vx) if np.sqrt(vx * vx + vy * vy) > 0.15 else heading[i]
+
+
+def decide_fast(ai: AIState, s: RigidState, cfg: AIConfig, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`decide` in one compiled pass (the same random draws, so the same crowd from a seed)."""
+    n = s.r.shape[0]
+    noise = cfg.wander_rate * np.sqrt(dt) * ai.rng.standard_normal(int(np.count_nonzero(ai.kind == WANDER)))
+    v, heading = np.empty((n, 2)), np.empty(n)
+    _decide_kernel(ai.kind, ai.target, ai.leader, ai.speed, ai.wander, noise, s.r, s.forward, s.heading,
+                   float(cfg.arrive_radius), float(cfg.follow_distance), float(cfg.flee_radius), v, heading)
     return v, heading

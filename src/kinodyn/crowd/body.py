@@ -29,11 +29,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from kinodyn.errors import ParameterError
 
-__all__ = ["GRAVITY", "BodyConfig", "RigidState", "rigid_state", "support_height", "tilt_quat"]
+__all__ = ["GRAVITY", "BodyConfig", "RigidState", "rigid_state", "rigid_state_fast", "support_height",
+           "tilt_quat"]
 
 GRAVITY = 9.81
 
@@ -232,3 +234,64 @@ def rigid_state(qpos: np.ndarray, qvel: np.ndarray) -> RigidState:
     heading = np.where(heading <= -np.pi, heading + 2 * np.pi, heading)
     return RigidState(r=r.copy(), quat=q, heading=heading, theta_x=theta_x, theta_z=theta_z,
                       vel=qvel[:, :3].copy(), omega=omega, forward=forward, left=left, up=up)
+
+
+@numba.njit(cache=True)
+def _state_kernel(qpos, qvel, axes, offset, margin, quat, heading, theta_x, theta_z, omega, forward, left, up,
+                  on_floor):
+    """Compiled :func:`rigid_state` and the floor test of :func:`support_height`, one pass per body."""
+    for i in range(qpos.shape[0]):
+        nq = np.sqrt(qpos[i, 3] ** 2 + qpos[i, 4] ** 2 + qpos[i, 5] ** 2 + qpos[i, 6] ** 2)
+        w, x, y, z = qpos[i, 3] / nq, qpos[i, 4] / nq, qpos[i, 5] / nq, qpos[i, 6] / nq
+        quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = w, x, y, z
+        h = 2.0 * np.arctan2(z, w)
+        # cos and sin of the heading 2 atan2(z, w), without evaluating them
+        ww, zz = w * w, z * z
+        ch, sh = ((ww - zz) / (ww + zz), 2.0 * w * z / (ww + zz)) if ww + zz > 1e-300 else (1.0, 0.0)
+        if h > np.pi:
+            h -= 2 * np.pi
+        elif h <= -np.pi:
+            h += 2 * np.pi
+        heading[i] = h
+        forward[i, 0], forward[i, 1], forward[i, 2] = ch, sh, 0.0
+        left[i, 0], left[i, 1], left[i, 2] = -sh, ch, 0.0
+        ux, uy, uz = 2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)
+        up[i, 0], up[i, 1], up[i, 2] = ux, uy, uz
+        theta_x[i] = np.arctan2(ux * ch + uy * sh, uz)
+        theta_z[i] = np.arcsin(min(1.0, max(-1.0, -ux * sh + uy * ch)))
+        a0, a1, a2 = qvel[i, 3], qvel[i, 4], qvel[i, 5]
+        t0, t1, t2 = 2 * (y * a2 - z * a1), 2 * (z * a0 - x * a2), 2 * (x * a1 - y * a0)
+        omega[i, 0] = a0 + w * t0 + (y * t2 - z * t1)
+        omega[i, 1] = a1 + w * t1 + (z * t0 - x * t2)
+        omega[i, 2] = a2 + w * t2 + (x * t1 - y * t0)
+        # world up in the body frame (the heading turns about it, so only the tilt matters)
+        bx, by, bz = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+        rest = (np.sqrt((axes[0] * bx) ** 2 + (axes[1] * by) ** 2 + (axes[2] * bz) ** 2)
+                - (bx * offset[0] + by * offset[1] + bz * offset[2]))
+        on_floor[i] = qpos[i, 2] < rest + margin
+
+
+def rigid_state_fast(qpos: np.ndarray, qvel: np.ndarray, cfg: BodyConfig, margin: float
+                     ) -> tuple[RigidState, np.ndarray]:
+    """:func:`rigid_state` in one compiled pass, with the bodies that touch the floor.
+
+    Args:
+        qpos: ``(N, 7)`` and ``qvel`` ``(N, 6)``: MuJoCo's free-joint state (as :func:`rigid_state`).
+        cfg: the bodies' configuration (their shape sets the resting height).
+        margin: metres above its resting height (:func:`support_height`) under which a body touches
+            the floor.
+
+    Returns:
+        ``(state, on_floor (N,) bool)``; the state's arrays are new (not views of ``qpos``, ``qvel``).
+    """
+    n = qpos.shape[0]
+    quat, vec = np.empty((n, 4)), np.empty((5, n, 3))
+    ang = np.empty((3, n))
+    on_floor = np.empty(n, np.bool_)
+    omega, forward, left, up = vec[0], vec[1], vec[2], vec[3]
+    _state_kernel(qpos, qvel, cfg.semi_axes, cfg.shape_offset, float(margin), quat, ang[0], ang[1], ang[2],
+                  omega, forward, left, up, on_floor)
+    r, vel = vec[4], qvel[:, :3].copy()
+    r[:] = qpos[:, :3]
+    return RigidState(r=r, quat=quat, heading=ang[0], theta_x=ang[1], theta_z=ang[2], vel=vel, omega=omega,
+                      forward=forward, left=left, up=up), on_floor

@@ -347,7 +347,8 @@ def control_kernel(qpos, qvel, on_floor, v_target, heading_target, mode, timer, 
         nq = np.sqrt(qpos[i, 3] ** 2 + qpos[i, 4] ** 2 + qpos[i, 5] ** 2 + qpos[i, 6] ** 2)
         w, x, y, z = qpos[i, 3] / nq, qpos[i, 4] / nq, qpos[i, 5] / nq, qpos[i, 6] / nq
         h = 2.0 * np.arctan2(z, w)
-        ch, sh = np.cos(h), np.sin(h)
+        ww, zz = w * w, z * z  # cos and sin of h without evaluating them
+        ch, sh = ((ww - zz) / (ww + zz), 2.0 * w * z / (ww + zz)) if ww + zz > 1e-300 else (1.0, 0.0)
         ux, uy, uz = 2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)
         uf, ul = ux * ch + uy * sh, -ux * sh + uy * ch
         tx, tz = np.arctan2(uf, uz), np.arcsin(min(1.0, max(-1.0, ul)))

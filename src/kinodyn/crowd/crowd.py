@@ -21,10 +21,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
-from kinodyn.crowd.behaviours import AIConfig, decide, new_ai
-from kinodyn.crowd.body import BodyConfig, rigid_state, support_height
+from kinodyn.crowd.behaviours import AIConfig, decide_fast, new_ai
+from kinodyn.crowd.body import BodyConfig, rigid_state_fast
 from kinodyn.crowd.controller import (
     BALANCE,
     STANDING_UP,
@@ -33,8 +34,8 @@ from kinodyn.crowd.controller import (
     new_control_state,
     pack_config,
 )
-from kinodyn.crowd.interpolate import interpolate
-from kinodyn.crowd.keyframes import KeyframeSet, builtin_keyframes, phases, travel
+from kinodyn.crowd.interpolate import interpolate_prepared, scratch
+from kinodyn.crowd.keyframes import KeyframeSet, builtin_keyframes, travel
 from kinodyn.errors import ParameterError, SimulationDivergedError
 
 __all__ = ["Crowd", "CrowdConfig", "Prop", "grid"]
@@ -107,6 +108,10 @@ def _build_model(pos: np.ndarray, heading: np.ndarray, body: BodyConfig, cfg: Cr
     spec.option.timestep = 1.0 / (cfg.fps * cfg.substeps)
     spec.memory = int(64e6 + 60e3 * len(pos))
     spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+    # Projected Gauss-Seidel: the contacts are frictionless (condim 1) but for the few balls and
+    # props, so it converges in a couple of sweeps; Newton's sparse Cholesky of its Hessian cost
+    # more than everything else in a step (measured with kinodyn bench crowd).
+    spec.option.solver = mujoco.mjtSolver.mjSOL_PGS
     w = spec.worldbody
     w.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], condim=1)
     for (x, y), h in zip(pos, heading):
@@ -188,7 +193,8 @@ class Crowd:
         self.side_weight = np.zeros(n)
         self.posing = pose
         j = self.keyframes.key_rot.shape[1]
-        self.local_rot, self.root_pos = np.zeros((n, j, 4)), np.zeros((n, 3))
+        # float32 rotations: shown (and recorded) poses need no more, and the sum runs twice as wide
+        self.local_rot, self.root_pos = np.zeros((n, j, 4), np.float32), np.zeros((n, 3))
         self.local_rot[..., 0] = 1.0
         #: ``(N, 4)`` each body's current point of Q (Theta_x, Theta_z, D_x, D_z), set by posing.
         self.points = np.zeros((n, 4))
@@ -199,7 +205,8 @@ class Crowd:
         #: CPU seconds of this thread spent in each part of :meth:`step` (behaviours and control,
         #: MuJoCo, posing), accumulated; reset it to measure a stretch.
         self.timings = {"control": 0.0, "physics": 0.0, "posing": 0.0}
-        self.state = rigid_state(self._qpos, self._qvel)
+        self.state, self._on_floor = rigid_state_fast(self._qpos, self._qvel, body, config.on_floor_margin)
+        self._work = scratch(n, np.float32)
         if pose:
             self._pose()
 
@@ -261,11 +268,10 @@ class Crowd:
         for _ in range(int(frames)):
             t0 = time.thread_time()
             s = self.state
-            on_floor = s.r[:, 2] < support_height(body, s.theta_x, s.theta_z) + cfg.on_floor_margin
-            v, h = decide(self.ai, s, self.ai_config, self.dt)
+            v, h = decide_fast(self.ai, s, self.ai_config, self.dt)
             self._v_target = v
             cs = self.control_state
-            control_kernel(self._qpos, self._qvel, on_floor, v, h, cs.mode, cs.timer, cs.stand_from,
+            control_kernel(self._qpos, self._qvel, self._on_floor, v, h, cs.mode, cs.timer, cs.stand_from,
                            self._params, self.dt, self._forces)
             self._xfrc[:] = self._forces
             self._apply_pushes()
@@ -274,7 +280,8 @@ class Crowd:
             t2 = time.thread_time()
             self.time += self.dt
             self.frame += 1
-            self.state = s = rigid_state(self._qpos, self._qvel)
+            s, self._on_floor = rigid_state_fast(self._qpos, self._qvel, body, cfg.on_floor_margin)
+            self.state = s
             self.d_side, self.d_front = travel(self.d_side, self.d_front, s.vel, s.forward, s.left, self.dt)
             if self.frame % 30 == 0 and not np.all(np.isfinite(self._qpos)):
                 bad = int(np.flatnonzero(~np.all(np.isfinite(self._qpos), axis=1))[0])
@@ -294,27 +301,12 @@ class Crowd:
     def _pose(self) -> None:
         """Map every body's state into Q and pose it from the keyframe set in its frame Sr (section 5)."""
         s, cfg = self.state, self.config
-        p = self.points
-        p[:, 0], p[:, 1] = s.theta_x, s.theta_z
-        p[:, 2], p[:, 3] = phases(self.d_side, self.d_front, self.keyframes.stride)
-        target = np.zeros_like(self.behaviour_weights)
-        target[:, 0] = 1.0
-        mode = self.control_state.mode
-        still = ((mode == BALANCE) & (np.hypot(s.v_forward, s.v_side) < cfg.still_speed)
-                 & (np.linalg.norm(self._v_target, axis=1) < 0.05) & (np.abs(s.theta_x) < 0.1))
-        standing = (mode == STANDING_UP) | still
-        target[standing] = 0.0
-        target[standing, self._stand_b] = 1.0
-        step = min(1.0, self.dt / cfg.behaviour_ease)
-        bw = self.behaviour_weights
-        bw += np.clip(target - bw, -step, step)
-        bw /= bw.sum(axis=1, keepdims=True)
-        a_side = s.v_side ** 2 + (3.0 * s.theta_z) ** 2
-        a_fwd = s.v_forward ** 2 + (3.0 * s.theta_x) ** 2
-        target_w = a_side / (a_side + a_fwd + 0.02)
-        self.side_weight += (target_w - self.side_weight) * (1.0 - 0.5 ** (self.dt / cfg.side_halflife))
-        interpolate(self.keyframes, p, bw, self.side_weight, out=(self.local_rot, self.root_pos),
-                    frame=(s.r, s.quat))
+        bw, sw = self.behaviour_weights, self.side_weight
+        _pose_inputs(s.theta_x, s.theta_z, s.vel, s.forward, s.left, self.d_side, self.d_front,
+                     self.keyframes.stride, self.control_state.mode, self._v_target, self._stand_b, self.dt,
+                     cfg.behaviour_ease, cfg.side_halflife, cfg.still_speed, self.points, bw, sw)
+        interpolate_prepared(self.keyframes, self.points, bw, sw, self._work, (self.local_rot, self.root_pos),
+                             (s.r, s.quat))
 
     # ------------------------------------------------------------------ recording
     def start_recording(self) -> None:
@@ -343,3 +335,37 @@ class Crowd:
         return [Motion(skeleton=self.keyframes.skeleton, root_pos=rec["root_pos"][:, i].astype(np.float64),
                        local_rot=rec["local_rot"][:, i].astype(np.float64), fps=self.config.fps, name=names[i])
                 for i in range(self.n)]
+
+
+@numba.njit(cache=True)
+def _pose_inputs(theta_x, theta_z, vel, forward, left, d_side, d_front, stride, mode, v_target, stand_b, dt,
+                 ease, side_halflife, still_speed, points, bweights, side_weight):
+    """Each body's point of Q (equations 9, 10), its eased behaviour weights and side-plane weight.
+
+    A balancing body that stands still (or one standing up) is shown with the standing-up behaviour;
+    the weights move toward the one-hot target by at most ``dt / ease`` per frame; the side-plane
+    weight eases with a half-life toward the share of sideways motion and tilt.
+    """
+    nb = bweights.shape[1]
+    step = min(1.0, dt / ease)
+    keep = 1.0 - 0.5 ** (dt / side_halflife)
+    for i in range(points.shape[0]):
+        points[i, 0], points[i, 1] = theta_x[i], theta_z[i]
+        ps, pf = d_side[i] / stride, d_front[i] / stride
+        ps, pf = ps - np.floor(ps), pf - np.floor(pf)
+        points[i, 2], points[i, 3] = (0.0 if ps >= 1.0 else ps), (0.0 if pf >= 1.0 else pf)
+        vf = vel[i, 0] * forward[i, 0] + vel[i, 1] * forward[i, 1] + vel[i, 2] * forward[i, 2]
+        vs = vel[i, 0] * left[i, 0] + vel[i, 1] * left[i, 1] + vel[i, 2] * left[i, 2]
+        still = (mode[i] == BALANCE and np.hypot(vf, vs) < still_speed
+                 and np.hypot(v_target[i, 0], v_target[i, 1]) < 0.05 and abs(theta_x[i]) < 0.1)
+        target = stand_b if (mode[i] == STANDING_UP or still) else 0
+        total = 0.0
+        for b in range(nb):
+            goal = 1.0 if b == target else 0.0
+            bweights[i, b] += min(step, max(-step, goal - bweights[i, b]))
+            total += bweights[i, b]
+        for b in range(nb):
+            bweights[i, b] /= total
+        a_side = vs * vs + (3.0 * theta_z[i]) ** 2
+        a_fwd = vf * vf + (3.0 * theta_x[i]) ** 2
+        side_weight[i] += (a_side / (a_side + a_fwd + 0.02) - side_weight[i]) * keep

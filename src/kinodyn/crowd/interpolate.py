@@ -24,13 +24,15 @@ weight is 1). Shapes: N points, J joints, B behaviours. One compiled kernel runs
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numba
 import numpy as np
 
 from kinodyn.crowd.keyframes import KeyframeSet
 from kinodyn.errors import ParameterError
 
-__all__ = ["interpolate", "to_world"]
+__all__ = ["aligned_keys", "interpolate", "interpolate_prepared", "scratch", "to_world"]
 
 TILT_SCALE = 0.5
 PHASE_SCALE = 0.25
@@ -117,40 +119,59 @@ def _side_weight(tx, tz, dx, dz, given, tilt_scale, phase_scale):
 
 
 @numba.njit(cache=True, fastmath=True)
-def _accumulate(i, m, idx, wts, key_rot, key_root, out_rot, out_root):
-    """Weighted sum of the terms' poses (quaternions on the first term's hemisphere), normalized."""
-    nj = key_rot.shape[1]
-    out_rot[i, :, :] = 0.0
-    out_root[i, :] = 0.0
+def _accumulate(i, m, idx, wts, aligned, key_root, out_rot, out_root):
+    """Weighted sum of the terms' poses (quaternions on the first term's hemisphere), normalized.
+
+    ``aligned[r, k]`` is keyframe ``k``'s rotations ``(J * 4,)`` each turned onto the hemisphere of
+    keyframe ``r``'s (:func:`aligned_keys`), so the sum is a plain weighted sum of rows.
+    """
+    nj4 = aligned.shape[2]
     r = idx[0]
-    for t in range(m):
+    w = wts[0]
+    row = aligned[r, r]
+    for c in range(nj4):
+        out_rot[i, c] = w * row[c]
+    for c in range(3):
+        out_root[i, c] = w * key_root[r, c]
+    for t in range(1, m):
         k, w = idx[t], wts[t]
+        row = aligned[r, k]
+        for c in range(nj4):
+            out_rot[i, c] += w * row[c]
         for c in range(3):
             out_root[i, c] += w * key_root[k, c]
-        for j in range(nj):
-            d = (key_rot[r, j, 0] * key_rot[k, j, 0] + key_rot[r, j, 1] * key_rot[k, j, 1]
-                 + key_rot[r, j, 2] * key_rot[k, j, 2] + key_rot[r, j, 3] * key_rot[k, j, 3])
-            s = w if d >= 0.0 else -w
-            for c in range(4):
-                out_rot[i, j, c] += s * key_rot[k, j, c]
-    for j in range(nj):
-        nrm = np.sqrt(out_rot[i, j, 0] ** 2 + out_rot[i, j, 1] ** 2 + out_rot[i, j, 2] ** 2 + out_rot[i, j, 3] ** 2)
+    for j in range(0, nj4, 4):
+        q0, q1, q2, q3 = out_rot[i, j], out_rot[i, j + 1], out_rot[i, j + 2], out_rot[i, j + 3]
+        nrm = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         if nrm < 1e-12:
-            out_rot[i, j, 0] = 1.0
+            out_rot[i, j], out_rot[i, j + 1], out_rot[i, j + 2], out_rot[i, j + 3] = 1.0, 0.0, 0.0, 0.0
         else:
+            inv = 1.0 / nrm
             for c in range(4):
-                out_rot[i, j, c] /= nrm
+                out_rot[i, j + c] *= inv
+
+
+@lru_cache(maxsize=8)
+def aligned_keys(ks: KeyframeSet, dtype=np.float64) -> np.ndarray:
+    """``(K, K, J * 4)``: row ``[r, k]`` holds keyframe ``k``'s joint rotations, each negated where its
+    dot product with keyframe ``r``'s is negative (the same rotation on ``r``'s hemisphere), as
+    ``dtype``."""
+    rot = np.asarray(ks.key_rot, np.float64)
+    sign = np.where(np.einsum("rjc,kjc->rkj", rot, rot) >= 0.0, 1.0, -1.0)
+    out = (sign[..., None] * rot[None]).reshape(rot.shape[0], rot.shape[0], -1).astype(dtype)
+    out.setflags(write=False)
+    return out
 
 
 @numba.njit(cache=True)
 def _to_frame(i, pos, q, out_rot, out_root):
     """Show pose ``i`` in the frame (``pos (N, 3)``, ``q (N, 4)``): root rotation and position."""
     w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-    a0, a1, a2, a3 = out_rot[i, 0, 0], out_rot[i, 0, 1], out_rot[i, 0, 2], out_rot[i, 0, 3]
-    out_rot[i, 0, 0] = w * a0 - x * a1 - y * a2 - z * a3
-    out_rot[i, 0, 1] = w * a1 + x * a0 + y * a3 - z * a2
-    out_rot[i, 0, 2] = w * a2 - x * a3 + y * a0 + z * a1
-    out_rot[i, 0, 3] = w * a3 + x * a2 - y * a1 + z * a0
+    a0, a1, a2, a3 = out_rot[i, 0], out_rot[i, 1], out_rot[i, 2], out_rot[i, 3]
+    out_rot[i, 0] = w * a0 - x * a1 - y * a2 - z * a3
+    out_rot[i, 1] = w * a1 + x * a0 + y * a3 - z * a2
+    out_rot[i, 2] = w * a2 - x * a3 + y * a0 + z * a1
+    out_rot[i, 3] = w * a3 + x * a2 - y * a1 + z * a0
     vx, vy, vz = out_root[i, 0], out_root[i, 1], out_root[i, 2]
     tx, ty, tz = 2 * (y * vz - z * vy), 2 * (z * vx - x * vz), 2 * (x * vy - y * vx)
     out_root[i, 0] = pos[i, 0] + vx + w * tx + (y * tz - z * ty)
@@ -159,7 +180,7 @@ def _to_frame(i, pos, q, out_rot, out_root):
 
 
 @numba.njit(cache=True, parallel=True)
-def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, key_rot, key_phase,
+def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, aligned, key_phase,
                    level_tilt, level_start, level_count, plane_start, plane_count, idx, wts, out_rot, out_root,
                    frame_pos, frame_quat, in_frame):
     nb = bweights.shape[1]
@@ -179,7 +200,7 @@ def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, 
             if ws > 0.0:
                 m = _plane_terms(b, 1, tz, dx, wb * ws, plane_start, plane_count, level_tilt, key_phase,
                                  level_start, level_count, idx[i], wts[i], m)
-        _accumulate(i, m, idx[i], wts[i], key_rot, key_root, out_rot, out_root)
+        _accumulate(i, m, idx[i], wts[i], aligned, key_root, out_rot, out_root)
         if in_frame:
             _to_frame(i, frame_pos, frame_quat, out_rot, out_root)
 
@@ -220,8 +241,7 @@ def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
     else:
         sw = np.clip(np.broadcast_to(np.asarray(side_weight, np.float64), (n,)), 0.0, 1.0)
     rot, root = out if out is not None else (np.empty((n, ks.key_rot.shape[1], 4)), np.empty((n, 3)))
-    idx = np.empty((n, MAX_TERMS), np.int64)
-    wts = np.empty((n, MAX_TERMS))
+    idx, wts = scratch(n)
     if frame is None:
         fpos, fquat, in_frame = np.zeros((1, 3)), np.zeros((1, 4)), False
     else:
@@ -229,9 +249,37 @@ def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
         if fpos.shape != (n, 3) or fquat.shape != (n, 4):
             raise ParameterError(f"frame must be ((N, 3), (N, 4)) arrays for N = {n}, got {fpos.shape}, {fquat.shape}")
     _interp_kernel(pts, bw, np.ascontiguousarray(sw), float(tilt_scale), float(phase_scale), ks.key_root,
-                   ks.key_rot, ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start,
-                   ks.plane_count, idx, wts, rot, root, fpos, fquat, in_frame)
+                   aligned_keys(ks), ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count,
+                   ks.plane_start, ks.plane_count, idx, wts, rot.reshape(n, -1), root, fpos, fquat, in_frame)
     return rot, root
+
+
+def scratch(n: int, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """Working arrays of the compiled interpolation for ``n`` points: term indices ``(n, MAX_TERMS)``
+    and weights of ``dtype``, the precision of the rotations it sums (a caller posing every frame keeps
+    them)."""
+    return np.empty((n, MAX_TERMS), np.int64), np.empty((n, MAX_TERMS), dtype)
+
+
+def interpolate_prepared(ks: KeyframeSet, points, bweights, side_weight, work, out, frame) -> None:
+    """:func:`interpolate` without checks or copies, for a caller that owns valid arrays.
+
+    Args:
+        points: ``(N, 4)`` float64, phases already in ``[0, 1)``.
+        bweights: ``(N, B)`` float64 rows summing to 1.
+        side_weight: ``(N,)`` float64 in ``[0, 1]``.
+        work: :func:`scratch` arrays for N; the dtype of their weights (float64 or float32) is the
+            precision of the rotations summed.
+        out: ``(rot (N, J, 4), root (N, 3))`` C-contiguous, filled: ``rot`` of the weights' dtype
+            (float32 poses agree with :func:`interpolate` to about 1e-7), ``root`` float64.
+        frame: ``(body_pos (N, 3), body_quat (N, 4))`` C-contiguous float64.
+    """
+    rot, root = out
+    aligned = aligned_keys(ks, work[1].dtype.type)
+    _interp_kernel(points, bweights, side_weight, TILT_SCALE, PHASE_SCALE, ks.key_root, aligned,
+                   ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start,
+                   ks.plane_count, work[0], work[1], rot.reshape(rot.shape[0], -1), root, frame[0], frame[1],
+                   True)
 
 
 def _behaviour_weights(behaviour, n: int, nb: int) -> np.ndarray:
