@@ -51,6 +51,7 @@ import numpy as np
 from kinodyn.contact import meshes
 from kinodyn.contact.setting import KINDS, MATERIALS, SHAPES, Piece, SceneObject
 from kinodyn.errors import FileFormatError, KinodynError
+from kinodyn.io import mocapdir
 from kinodyn.math import quat
 
 __all__ = [
@@ -131,15 +132,10 @@ def scenario_path(name_or_path) -> Path:
 
 
 def mocap_folder(folder=None) -> Path | None:
-    """The motion-capture folder ``mocap:`` motions are found in: ``folder`` when given, else
-    ``$KINODYN_MOCAP``, else ``shared/mocap`` beside the repository checkout; None when there is none."""
-    if folder is None and os.environ.get("KINODYN_MOCAP"):
-        folder = os.environ["KINODYN_MOCAP"]
-    if folder is not None:
-        return Path(folder).expanduser() if Path(folder).expanduser().is_dir() else None
-    here = Path(__file__).resolve()
-    guess = here.parents[4] / "shared" / "mocap" if len(here.parents) > 4 else None  # src/kinodyn/contact/
-    return guess if guess is not None and guess.is_dir() else None
+    """The motion-capture folder ``mocap:`` motions are found in (:func:`kinodyn.io.mocapdir.find`):
+    ``folder`` when given, else ``$KINODYN_MOCAP``, else ``shared/mocap`` beside the checkout; None when
+    there is none."""
+    return mocapdir.find(folder)
 
 
 def resolve_motion(motion: str, folder=None) -> str:

@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from kinodyn.bench import BenchResult
+from kinodyn.io import mocapdir
 
 __all__ = [
     "BENCH_FRAMES",
@@ -104,20 +105,8 @@ _CMU_BONES = (
 
 
 def find_mocap() -> Path | None:
-    """The shared motion-capture folder: ``$KINODYN_MOCAP`` when set (None if it is not a folder),
-    else ``../shared/mocap`` beside the repository or the working directory; None when absent."""
-    env = os.environ.get("KINODYN_MOCAP")
-    if env:
-        return Path(env).resolve() if Path(env).is_dir() else None
-    cands = []
-    here = Path(__file__).resolve()
-    if len(here.parents) > 3:
-        cands.append(here.parents[3] / ".." / "shared" / "mocap")  # src/kinodyn/io/bench.py -> repo/..
-    cands.append(Path.cwd() / ".." / "shared" / "mocap")
-    for c in cands:
-        if c.is_dir():
-            return c.resolve()
-    return None
+    """The shared motion-capture folder (:func:`kinodyn.io.mocapdir.find`)."""
+    return mocapdir.find()
 
 
 def synthetic_asf_text() -> str:
