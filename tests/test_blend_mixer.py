@@ -524,3 +524,31 @@ def test_the_root_follows_the_feet_without_jumps():
     m = run_script(transition_script()).motion
     acc = np.linalg.norm(np.diff(m.root_pos[:, :2], 2, axis=0), axis=1) * m.fps ** 2
     assert acc.max() < 40.0, acc.max()   # m/s^2; a support change that moved the root at once gave 300
+
+
+@pytest.mark.parametrize("closing", [False, True])
+def test_a_walk_fading_into_the_neutral_pose_ends_with_a_closing_step(lib, closing):
+    """With ``closing_step`` a walk stopped while nothing else plays fades out so that its weight passes
+    one half in the middle of a single support (its swinging foot beside the standing one), within
+    CLOSING_DELAY of the stop; without it the fade starts at the stop."""
+    from kinodyn.blend.character import CLOSING_DELAY
+
+    mx = Mixer(lib, 1, BlendConfig(closing_step=closing, ramp_out=0.4), record=True)
+    mx.start("walk", key="w", priority=1)
+    for _ in range(70):
+        mx.step(1 / 60)
+    now = mx.time
+    mx.stop("w")
+    a = mx.chars[0].actions["w"]
+    if not closing:
+        assert a.t_off == pytest.approx(now)
+        return
+    assert now <= a.t_off <= now + CLOSING_DELAY
+    half = a.t_off + 0.5 * a.ramp_out
+    while mx.time < half + 0.2:
+        mx.step(1 / 60)
+    rec = mx.recordings[0].arrays()
+    h = np.interp(half, rec["t"], rec["w"][0])
+    p, h0, h1 = a.seq.element(int(a.seq.index_at(h)))
+    assert p in (int(phases.RS), int(phases.LS))
+    assert abs((h - h0) / (h1 - h0) - 0.5) < 0.1

@@ -19,12 +19,18 @@ import math
 
 import numpy as np
 
+from kinodyn import phases as _phases
 from kinodyn.blend.actions import ActionState
 from kinodyn.blend.sync import Synchronizer
 from kinodyn.blend.timewarp import WarpPlanner
 from kinodyn.errors import ParameterError, UnknownNameError
 
-__all__ = ["Character", "Slots"]
+__all__ = ["CLOSING_DELAY", "Character", "Slots"]
+
+#: Seconds an action fading into the neutral pose may play on so that it ends with a closing step.
+CLOSING_DELAY = 1.0
+#: Phase codes of single supports.
+SINGLE_SUPPORT = (int(_phases.RS), int(_phases.LS))
 
 
 class Slots:
@@ -200,11 +206,43 @@ class Character:
             a.handover = True   # fades out when the waiting action starts (see ActionState.handover)
             return
         if a.t_off is None or a.t_off > now:
-            a.t_off = now
+            a.t_off = self._closing_stop(a, now)
             a.handover = False
             if self.planner is not None:
                 self.planner.replan()
             self._write_segments()
+
+    def _closing_stop(self, a: ActionState, now: float) -> float:
+        """When ``a`` fades into the neutral pose (no other action keeps playing), the time its fade-out
+        begins: delayed so that its weight passes one half in the middle of one of its single supports,
+        when the swinging foot passes beside the standing one; the neutral pose (both feet down) then
+        plants the swinging foot there, a closing step, rather than holding a stride apart
+        (:attr:`~kinodyn.blend.mixer.BlendConfig.closing_step`). ``now`` when that is off, without
+        synchronization, while another action plays, or when no such moment is planned within
+        :data:`CLOSING_DELAY` seconds."""
+        if self.planner is None or self.sync.pending or not self.config.closing_step:
+            return now
+        if any(b is not a and b.t_on is not None and b.t_off is None for b in self.actions.values()):
+            return now
+        tm = self.planner.timing.get(a.key)
+        seg = None if tm is None else tm.current
+        if seg is None or not seg.t0 <= now <= seg.t1:
+            return now
+        c = seg.coef
+        u = now - seg.t0
+        h = ((c[3] * u + c[2]) * u + c[1]) * u + c[0]
+        half = 0.5 * a.ramp_out
+        first = int(a.seq.index_at(h))
+        for k in range(first, first + 8):
+            p, h0, h1 = a.seq.element(k)
+            if p not in SINGLE_SUPPORT:
+                continue
+            t_mid = self.planner.time_of(a.key, 0.5 * (h0 + h1))
+            if t_mid is None or t_mid - half > now + CLOSING_DELAY:
+                break
+            if t_mid - half >= now:
+                return t_mid - half
+        return now
 
     # ------------------------------------------------------------------ time
     def next_event(self) -> float:

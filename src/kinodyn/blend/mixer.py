@@ -96,6 +96,10 @@ class BlendConfig:
             While weights ramp, the mix of displacements alone moves a planted foot by the weight change
             times the difference of where the clips put that foot; with synchronized supports there is
             one planted foot to follow, without them the actions disagree on it.
+        closing_step: with synchronization, an action stopped while nothing else plays (fading into
+            the neutral pose) plays on, up to :data:`~kinodyn.blend.character.CLOSING_DELAY`, until its
+            weight passes one half in the middle of a single support: the swinging foot comes down
+            beside the standing one instead of the lock holding the feet a stride apart.
     """
 
     synchronize: bool = True
@@ -111,6 +115,7 @@ class BlendConfig:
     max_foot_offset: float = 0.5
     max_pelvis_drop: float = 0.05
     root_motion: str = "support"
+    closing_step: bool = False
 
     @property
     def enforce(self) -> bool:
