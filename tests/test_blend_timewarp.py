@@ -170,3 +170,20 @@ def test_weighted_tempo_keeps_the_heavier_action_within_its_bounds():
     assert tw.bounded_duration(0.3, [0.3, 0.4], 0.5, 2.0, [1.0, 0.2], by_weight=True) == 0.3
     with pytest.raises(ParameterError):
         tw.WarpConfig(tempo="fastest")
+
+
+@given(st.floats(0.0, 3.0), st.floats(0.0, 3.0), st.floats(0.3, 2.5))
+@settings(max_examples=200, deadline=None)
+def test_bounded_tangents_keep_the_speed_within_the_rates(m0, m1, sec):
+    """The Hermite segment's speed is a quadratic Bezier of m0, 3 sec - m0 - m1, m1: with the tangents
+    of bounded_tangents it stays within [0.5, 2] (widened to the secant) wherever the frozen start speed
+    allows, and the start speed is never changed (the played speed stays continuous)."""
+    lo, hi = min(0.5, sec), max(2.0, sec)
+    b0, b1 = tw.bounded_tangents(m0, m1, sec, 0.5, 2.0)
+    assert b0 == pytest.approx(min(max(m0, 0.0), 3.0 * sec))
+    s = np.linspace(0.0, 1.0, 101)
+    speed = b0 * (1 - s) ** 2 + 2 * (3 * sec - b0 - b1) * s * (1 - s) + b1 * s * s
+    if lo <= b0 <= hi and max(lo, 3 * sec - b0 - hi) <= min(hi, 3 * sec - b0 - lo):   # an end tangent exists
+        assert speed.min() >= lo - 1e-9 and speed.max() <= hi + 1e-9
+    c = tw.hermite_coefficients(0.0, 1.0, 0.0, sec, b0, b1)
+    np.testing.assert_allclose(c[1] + 2 * c[2] * s + 3 * c[3] * s * s, speed, atol=1e-9)

@@ -19,7 +19,6 @@ import math
 
 import numpy as np
 
-from kinodyn import phases as _phases
 from kinodyn.blend.actions import ActionState
 from kinodyn.blend.sync import Synchronizer
 from kinodyn.blend.timewarp import WarpPlanner
@@ -29,8 +28,8 @@ __all__ = ["CLOSING_DELAY", "Character", "Slots"]
 
 #: Seconds an action fading into the neutral pose may play on so that it ends with a closing step.
 CLOSING_DELAY = 1.0
-#: Phase codes of single supports.
-SINGLE_SUPPORT = (int(_phases.RS), int(_phases.LS))
+#: Candidate moments (1/60 s of action time apart) searched for a closing step.
+CLOSING_SAMPLES = 240
 
 
 class Slots:
@@ -102,6 +101,7 @@ class Character:
         self.weights_valid_until = math.inf
         self._wcache = None
         self.history: dict[object, ActionState] = {}   # every action ever started (for analysis)
+        self.neutral_feet = None  # (2, 2) the neutral pose's feet (set by the mixer; closing steps)
 
     # ------------------------------------------------------------------ weights (scalar, for planning)
     def weights_at(self, t: float) -> dict:
@@ -214,13 +214,13 @@ class Character:
 
     def _closing_stop(self, a: ActionState, now: float) -> float:
         """When ``a`` fades into the neutral pose (no other action keeps playing), the time its fade-out
-        begins: delayed so that its weight passes one half in the middle of one of its single supports,
-        when the swinging foot passes beside the standing one; the neutral pose (both feet down) then
-        plants the swinging foot there, a closing step, rather than holding a stride apart
-        (:attr:`~kinodyn.blend.mixer.BlendConfig.closing_step`). ``now`` when that is off, without
-        synchronization, while another action plays, or when no such moment is planned within
-        :data:`CLOSING_DELAY` seconds."""
-        if self.planner is None or self.sync.pending or not self.config.closing_step:
+        begins: delayed (up to :data:`CLOSING_DELAY` seconds) so that its weight passes one half when its
+        feet stand where the neutral pose's do, relative to the root (:meth:`_feet_of`): the neutral pose
+        (both feet down) then plants them there, a closing step, rather than holding them where the
+        action left them (:attr:`~kinodyn.blend.mixer.BlendConfig.closing_step`). ``now`` when that is
+        off, without synchronization, while another action plays, or beyond the planned steps."""
+        if (self.planner is None or self.sync.pending or not self.config.closing_step
+                or self.neutral_feet is None):
             return now
         if any(b is not a and b.t_on is not None and b.t_off is None for b in self.actions.values()):
             return now
@@ -230,19 +230,36 @@ class Character:
             return now
         c = seg.coef
         u = now - seg.t0
-        h = ((c[3] * u + c[2]) * u + c[1]) * u + c[0]
+        h_now = ((c[3] * u + c[2]) * u + c[1]) * u + c[0]
         half = 0.5 * a.ramp_out
-        first = int(a.seq.index_at(h))
-        for k in range(first, first + 8):
-            p, h0, h1 = a.seq.element(k)
-            if p not in SINGLE_SUPPORT:
-                continue
-            t_mid = self.planner.time_of(a.key, 0.5 * (h0 + h1))
-            if t_mid is None or t_mid - half > now + CLOSING_DELAY:
+        # candidate moments: every 1/60 s of action time that the plan reaches within the delay
+        hs = h_now + np.arange(1, int(CLOSING_SAMPLES)) / 60.0
+        ts = []
+        for h in hs:
+            t = self.planner.time_of(a.key, float(h))
+            if t is None or t - half > now + CLOSING_DELAY:
                 break
-            if t_mid - half >= now:
-                return t_mid - half
-        return now
+            ts.append(t)
+        ts = np.array(ts)
+        ok = ts - half >= now
+        if not ok.any():
+            return now
+        feet = self._feet_of(a, hs[:len(ts)][ok])
+        best = int(np.argmin(np.linalg.norm(feet - self.neutral_feet, axis=-1).sum(axis=-1)))
+        return float(ts[ok][best] - half)
+
+    def _feet_of(self, a: ActionState, hs) -> np.ndarray:
+        """``(M, 2, 2)`` horizontal positions of the lowest points of the left and right foot of action
+        ``a`` at action times ``hs (M,)``, in its facing frame with the root at the origin."""
+        from kinodyn import contacts
+        from kinodyn.motion import Motion
+
+        clip = np.full(len(hs), a.clip)
+        rot, z = self.store.sample(clip, np.asarray(hs) * a.speed)[:2]
+        root = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
+        pts = contacts.foot_points(Motion(self.store.skeleton, root, rot, 60.0))
+        low = [p[np.arange(len(p)), p[..., 2].argmin(axis=1), :2] for p in (pts["left"], pts["right"])]
+        return np.stack(low, axis=1)
 
     # ------------------------------------------------------------------ time
     def next_event(self) -> float:

@@ -39,6 +39,7 @@ __all__ = [
     "WarpConfig",
     "WarpPlanner",
     "bounded_duration",
+    "bounded_tangents",
     "cardinal_tangents",
     "eval_poly",
     "hermite_coefficients",
@@ -62,6 +63,9 @@ class WarpConfig:
         tempo: which actions bound a step's duration (:func:`bounded_duration`): ``"all"`` (every
             action present) or ``"weighted"`` (by decreasing leg weight, as far as they agree; an
             action under 2 % of the heaviest's weight does not count).
+        bounded_speed: keep the speed within ``[min_rate, max_rate]`` inside every segment too, not
+            only on average over each step (:func:`bounded_tangents`; the cubic otherwise dips and
+            overshoots between its knots).
     """
 
     tension: float = 0.0
@@ -69,6 +73,7 @@ class WarpConfig:
     min_rate: float = 0.5
     max_rate: float = 2.0
     tempo: str = "all"
+    bounded_speed: bool = False
 
     def __post_init__(self):
         if self.tempo not in ("all", "weighted"):
@@ -142,6 +147,24 @@ def bounded_duration(d: float, spans, min_rate: float, max_rate: float, weights=
             break
         lo, hi = max(lo, a), min(hi, b)
     return min(max(d, lo), hi)
+
+
+def bounded_tangents(m0: float, m1: float, sec: float, lo: float, hi: float) -> tuple[float, float]:
+    """End tangents of a cubic Hermite segment of secant ``sec`` whose speed stays within ``[lo, hi]``
+    (widened to include ``sec``).
+
+    The speed along the segment is a quadratic Bezier curve with control values ``m0``,
+    ``3 sec - m0 - m1`` and ``m1``, so it stays within the bounds when all three do. Only ``m1`` moves:
+    the speed at the segment's start, frozen by the previous segment, stays continuous (a jump in an
+    action's speed is a jump in the root's velocity); where no ``m1`` is enough, the closest one.
+    """
+    lo, hi = min(lo, sec), max(hi, sec)
+    m0 = min(max(m0, 0.0), 3.0 * sec)
+    a, b = max(lo, 3.0 * sec - m0 - hi), min(hi, 3.0 * sec - m0 - lo)
+    if a <= b:
+        return m0, min(max(m1, a), b)
+    # no end tangent is enough: the one closest to it, within the bounds
+    return m0, min(max(a if 3.0 * sec - m0 - hi > hi else b, lo), hi)
 
 
 def _limit(m, left, right):
@@ -427,6 +450,8 @@ class WarpPlanner:
             if mono:
                 m0 = min(max(m0, 0.0), 3.0 * sec)
                 m1 = min(max(m1, 0.0), 3.0 * sec)
+            if self.config.bounded_speed:
+                m0, m1 = bounded_tangents(m0, m1, sec, self.config.min_rate, self.config.max_rate)
             tm.tangent = {k + 1: m1}
             dt_, dh = t1 - t0, h1 - h0
             c2 = (3.0 * dh / dt_ - 2.0 * m0 - m1) / dt_
