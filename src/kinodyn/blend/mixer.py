@@ -115,7 +115,7 @@ class BlendConfig:
     max_foot_offset: float = 0.5
     max_pelvis_drop: float = 0.05
     root_motion: str = "support"
-    closing_step: bool = False
+    closing_step: bool = True
 
     @property
     def enforce(self) -> bool:

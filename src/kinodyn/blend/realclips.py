@@ -65,15 +65,16 @@ def fig12_script(folder, fight=("cmu_135_06-martialArts.amc", 8.9, 11.1)):
             {"clip": "jump", "start": 11.8, "priority": 2}]})
 
 
-def walk_run_walk(folder):
-    """A CMU walk cycle (07_05), a run cycle (09_06), the walk again."""
+def walk_run_walk(folder, neutral: str | None = "stand"):
+    """A CMU walk cycle (07_05), a run cycle (09_06), the walk again, from and back to standing (01_01);
+    ``neutral=None``: from and to the walk's first double support instead (no standing start or stop)."""
     from kinodyn.blend.script import parse_script
 
     if not _have(folder, "locomotion/cmu_07_05-walk.amc", "locomotion/cmu_09_06-run.amc", "locomotion/cmu_01_01.amc"):
         return None
     return parse_script({
         "name": "cmu_walk_run_walk", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "clips": _amc_loco(Path(folder)),
-        "neutral": "stand",
+        "neutral": neutral,
         "actions": [
             {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
             {"clip": "run", "start": 2.8, "stop": 6.0, "priority": 1},
