@@ -10,6 +10,11 @@ BVH conversions start with a T-pose frame that is not capture: it is dropped (``
 - :func:`walk_run_walk`: a walk, a run and the walk again (ASF/AMC);
 - :func:`walk_stumble`: a walk into a stumble (CMU 104_13) and back to the walk (BVH);
 - :func:`walk_fall_getup`: a walk into a fall on the face (90_16), a get-up (140_01), then standing (BVH).
+
+Each script starts from and ends in a standing pose, its neutral pose: a frame of subject 01 standing
+before the first jump of 01_01 (ASF/AMC scripts) or of subject 90 standing before the fall of 90_16
+(BVH scripts), feet side by side (without one, the mixer would stand in the first clip's first double
+support, a walking stride).
 """
 
 from __future__ import annotations
