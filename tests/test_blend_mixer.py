@@ -524,3 +524,30 @@ def test_the_root_follows_the_feet_without_jumps():
     m = run_script(transition_script()).motion
     acc = np.linalg.norm(np.diff(m.root_pos[:, :2], 2, axis=0), axis=1) * m.fps ** 2
     assert acc.max() < 40.0, acc.max()   # m/s^2; a support change that moved the root at once gave 300
+
+
+def test_a_walk_fading_into_the_neutral_pose_ends_with_a_closing_step(lib):
+    """A walk stopped while nothing else plays, at any moment of its cycle: without ``closing_step`` the
+    lock ends up holding the feet a stride away from where the standing pose puts them (up to 25 cm,
+    depending on when it was stopped); with it the walk plays on (within CLOSING_DELAY) until its feet
+    stand as the neutral pose's, and the final stance is the same, close to the pose, whenever it stops."""
+    from kinodyn.blend.character import CLOSING_DELAY
+
+    def final_offset(stop, closing):
+        mx = Mixer(lib, 1, BlendConfig(closing_step=closing, constraints="on"), record=True)
+        mx.start("walk", key="w", priority=1)
+        while mx.time < stop:
+            mx.step(1 / 60)
+        now = mx.time
+        mx.stop("w")
+        a = mx.chars[0].actions["w"]
+        assert a.t_off == pytest.approx(now) if not closing else now <= a.t_off <= now + CLOSING_DELAY
+        while mx.time < stop + 2.2:
+            mx.step(1 / 60)
+        return float(np.nanmax(mx.recordings[0].lock_offsets()[-10:]))
+
+    stops = np.arange(0.9, 1.65, 0.1)
+    plain = [final_offset(t, False) for t in stops]
+    closed = [final_offset(t, True) for t in stops]
+    assert max(plain) > 0.2 and max(closed) < 0.08
+    assert max(closed) - min(closed) < 0.01

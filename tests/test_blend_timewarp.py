@@ -148,3 +148,42 @@ def test_step_durations_keep_every_action_within_half_to_twice_its_speed():
     g = tw.bounded_duration(d, [0.55, 0.10], 0.5, 2.0)       # 5.5x apart: no duration fits both
     assert (0.55 / g) / 2.0 == pytest.approx(0.5 / (0.10 / g))
     assert tw.bounded_duration(0.3, [0.3, 0.4], 0.5, 2.0) == 0.3   # within the bounds: unchanged
+
+
+def test_weighted_tempo_keeps_the_heavier_action_within_its_bounds():
+    """A 0.73 s walk stance and a 0.13 s run stance cannot both play within 0.5x-2x. By default both miss
+    by the same factor; with ``by_weight`` the heavier action keeps its bounds (the lighter one misses
+    them), an action under TEMPO_WEIGHT of the heaviest does not bound the step, and two actions of the
+    top weight that cannot agree fall back to the geometric middle."""
+    spans = [0.73, 0.13]
+    g = tw.bounded_duration(0.3, spans, 0.5, 2.0, [0.6, 0.4])
+    assert not 0.5 <= 0.13 / g <= 2.0 and not 0.5 <= 0.73 / g <= 2.0
+    heavy_run = tw.bounded_duration(0.3, spans, 0.5, 2.0, [0.4, 0.6], by_weight=True)
+    assert 0.5 <= 0.13 / heavy_run <= 2.0
+    heavy_walk = tw.bounded_duration(0.3, spans, 0.5, 2.0, [0.6, 0.4], by_weight=True)
+    assert 0.5 <= 0.73 / heavy_walk <= 2.0
+    gone = tw.bounded_duration(0.13, spans, 0.5, 2.0, [0.01, 1.0], by_weight=True)
+    assert gone == pytest.approx(0.13)                       # the nearly gone walk has no say
+    assert tw.bounded_duration(0.13, spans, 0.5, 2.0, [0.03, 1.0], by_weight=True) > 0.13 / 2.0 - _TOL
+    tie = tw.bounded_duration(0.3, spans, 0.5, 2.0, [0.5, 0.5], by_weight=True)
+    assert tie == pytest.approx(g)
+    assert tw.bounded_duration(0.3, [0.3, 0.4], 0.5, 2.0, [1.0, 0.2], by_weight=True) == 0.3
+    with pytest.raises(ParameterError):
+        tw.WarpConfig(tempo="fastest")
+
+
+@given(st.floats(0.0, 3.0), st.floats(0.0, 3.0), st.floats(0.3, 2.5))
+@settings(max_examples=200, deadline=None)
+def test_bounded_tangents_keep_the_speed_within_the_rates(m0, m1, sec):
+    """The Hermite segment's speed is a quadratic Bezier of m0, 3 sec - m0 - m1, m1: with the tangents
+    of bounded_tangents it stays within [0.5, 2] (widened to the secant) wherever the frozen start speed
+    allows, and the start speed is never changed (the played speed stays continuous)."""
+    lo, hi = min(0.5, sec), max(2.0, sec)
+    b0, b1 = tw.bounded_tangents(m0, m1, sec, 0.5, 2.0)
+    assert b0 == pytest.approx(min(max(m0, 0.0), 3.0 * sec))
+    s = np.linspace(0.0, 1.0, 101)
+    speed = b0 * (1 - s) ** 2 + 2 * (3 * sec - b0 - b1) * s * (1 - s) + b1 * s * s
+    if lo <= b0 <= hi and max(lo, 3 * sec - b0 - hi) <= min(hi, 3 * sec - b0 - lo):   # an end tangent exists
+        assert speed.min() >= lo - 1e-9 and speed.max() <= hi + 1e-9
+    c = tw.hermite_coefficients(0.0, 1.0, 0.0, sec, b0, b1)
+    np.testing.assert_allclose(c[1] + 2 * c[2] * s + 3 * c[3] * s * s, speed, atol=1e-9)

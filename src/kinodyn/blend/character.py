@@ -24,7 +24,12 @@ from kinodyn.blend.sync import Synchronizer
 from kinodyn.blend.timewarp import WarpPlanner
 from kinodyn.errors import ParameterError, UnknownNameError
 
-__all__ = ["Character", "Slots"]
+__all__ = ["CLOSING_DELAY", "Character", "Slots"]
+
+#: Seconds an action fading into the neutral pose may play on so that it ends with a closing step.
+CLOSING_DELAY = 1.0
+#: Candidate moments (1/60 s of action time apart) searched for a closing step.
+CLOSING_SAMPLES = 240
 
 
 class Slots:
@@ -96,6 +101,7 @@ class Character:
         self.weights_valid_until = math.inf
         self._wcache = None
         self.history: dict[object, ActionState] = {}   # every action ever started (for analysis)
+        self.neutral_feet = None  # (2, 2) the neutral pose's feet (set by the mixer; closing steps)
 
     # ------------------------------------------------------------------ weights (scalar, for planning)
     def weights_at(self, t: float) -> dict:
@@ -200,11 +206,60 @@ class Character:
             a.handover = True   # fades out when the waiting action starts (see ActionState.handover)
             return
         if a.t_off is None or a.t_off > now:
-            a.t_off = now
+            a.t_off = self._closing_stop(a, now)
             a.handover = False
             if self.planner is not None:
                 self.planner.replan()
             self._write_segments()
+
+    def _closing_stop(self, a: ActionState, now: float) -> float:
+        """When ``a`` fades into the neutral pose (no other action keeps playing), the time its fade-out
+        begins: delayed (up to :data:`CLOSING_DELAY` seconds) so that its weight passes one half when its
+        feet stand where the neutral pose's do, relative to the root (:meth:`_feet_of`): the neutral pose
+        (both feet down) then plants them there, a closing step, rather than holding them where the
+        action left them (:attr:`~kinodyn.blend.mixer.BlendConfig.closing_step`). ``now`` when that is
+        off, without synchronization, while another action plays, or beyond the planned steps."""
+        if (self.planner is None or self.sync.pending or not self.config.closing_step
+                or self.neutral_feet is None):
+            return now
+        if any(b is not a and (b.t_on is None or b.t_off is None or b.t_off > now) for b in self.actions.values()):
+            return now  # another action waits or plays on (an auto-stopped one until its planned stop)
+        tm = self.planner.timing.get(a.key)
+        seg = None if tm is None else tm.current
+        if seg is None or not seg.t0 <= now <= seg.t1:
+            return now
+        c = seg.coef
+        u = now - seg.t0
+        h_now = ((c[3] * u + c[2]) * u + c[1]) * u + c[0]
+        half = 0.5 * a.ramp_out
+        # candidate moments: every 1/60 s of action time that the plan reaches within the delay
+        hs = h_now + np.arange(1, int(CLOSING_SAMPLES)) / 60.0
+        ts = []
+        for h in hs:
+            t = self.planner.time_of(a.key, float(h))
+            if t is None or t - half > now + CLOSING_DELAY:
+                break
+            ts.append(t)
+        ts = np.array(ts)
+        ok = ts - half >= now
+        if not ok.any():
+            return now
+        feet = self._feet_of(a, hs[:len(ts)][ok])
+        best = int(np.argmin(np.linalg.norm(feet - self.neutral_feet, axis=-1).sum(axis=-1)))
+        return float(ts[ok][best] - half)
+
+    def _feet_of(self, a: ActionState, hs) -> np.ndarray:
+        """``(M, 2, 2)`` horizontal positions of the lowest points of the left and right foot of action
+        ``a`` at action times ``hs (M,)``, in its facing frame with the root at the origin."""
+        from kinodyn import contacts
+        from kinodyn.motion import Motion
+
+        clip = np.full(len(hs), a.clip)
+        rot, z = self.store.sample(clip, np.asarray(hs) * a.speed)[:2]
+        root = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
+        pts = contacts.foot_points(Motion(self.store.skeleton, root, rot, 60.0))
+        low = [p[np.arange(len(p)), p[..., 2].argmin(axis=1), :2] for p in (pts["left"], pts["right"])]
+        return np.stack(low, axis=1)
 
     # ------------------------------------------------------------------ time
     def next_event(self) -> float:

@@ -197,13 +197,16 @@ def headline(arms: dict) -> dict:
     }
 
 
-def evaluate(script, library=None, results: dict | None = None) -> dict:
+def evaluate(script, library=None, results: dict | None = None, warp=None, **options) -> dict:
     """Play ``script`` in the four :data:`ARMS` and measure each (:func:`measure`).
 
     Args:
         script: a :class:`~kinodyn.blend.script.Script`.
         library: its :class:`~kinodyn.clips.ClipStore` (default: :func:`~kinodyn.blend.script.build_library`).
         results: a dict to receive the four :class:`~kinodyn.blend.script.BlendResult` objects by arm.
+        warp: a :class:`~kinodyn.blend.timewarp.WarpConfig` for every arm (default: the mixer's).
+        options: further :class:`~kinodyn.blend.mixer.BlendConfig` fields, the same in every arm (the
+            arms still differ in synchronization and the lock only).
 
     Returns:
         ``{"arms": {arm: figures}, **headline(arms)}``.
@@ -217,7 +220,8 @@ def evaluate(script, library=None, results: dict | None = None) -> dict:
     arms = {}
     for name, sync, lock in ARMS:
         cfg = BlendConfig(synchronize=sync, constraints="on" if lock else "off", sync=SyncConfig(nk=script.nk),
-                          ramp_in=script.ramp_in, ramp_out=script.ramp_out)
+                          ramp_in=script.ramp_in, ramp_out=script.ramp_out,
+                          **({} if warp is None else {"warp": warp}), **options)
         r = run_script(script, library=lib, config=cfg)
         if results is not None:
             results[name] = r

@@ -96,6 +96,10 @@ class BlendConfig:
             While weights ramp, the mix of displacements alone moves a planted foot by the weight change
             times the difference of where the clips put that foot; with synchronized supports there is
             one planted foot to follow, without them the actions disagree on it.
+        closing_step: with synchronization, an action stopped while nothing else plays (fading into
+            the neutral pose) plays on, up to :data:`~kinodyn.blend.character.CLOSING_DELAY` seconds,
+            so that its weight passes one half when its feet stand where the neutral pose's do: the
+            feet come down there instead of the lock holding them where the action left them.
     """
 
     synchronize: bool = True
@@ -111,6 +115,7 @@ class BlendConfig:
     max_foot_offset: float = 0.5
     max_pelvis_drop: float = 0.05
     root_motion: str = "support"
+    closing_step: bool = True
 
     @property
     def enforce(self) -> bool:
@@ -186,6 +191,10 @@ class Mixer:
         self.neutral = self._neutral_pose(neutral)
         self.neutral_rest = self.footlock.rest_of_pose(*self.neutral)
         self.chars = [Character(i, self.slots, library, self.sequences, config, self.keep_log) for i in range(self.n)]
+        if config.closing_step and self.footlock.legs is not None:
+            nf = self._neutral_feet()
+            for c in self.chars:
+                c.neutral_feet = nf
         self.recordings = [Recording() for _ in range(self.n)] if record else None
 
     @property
@@ -213,6 +222,16 @@ class Mixer:
             return rot[0], float(z[0])
         rot, z = lib.sample(np.array([lib.index(neutral)]), np.array([0.0]))
         return rot[0], float(z[0])
+
+    def _neutral_feet(self) -> np.ndarray:
+        """``(2, 2)`` horizontal positions of the neutral pose's lowest left and right foot points, in
+        its facing frame with the root at the origin."""
+        from kinodyn import contacts
+
+        rot, z = self.neutral
+        pose = Motion(self.library.skeleton, np.array([[0.0, 0.0, z]]), rot[None], 60.0)
+        pts = contacts.foot_points(pose)
+        return np.stack([p[0, p[0, :, 2].argmin(), :2] for p in (pts["left"], pts["right"])])
 
     # ------------------------------------------------------------------ commands
     def start(self, clip, character: int = 0, priority: float = 0.0, ramp_in: float | None = None,

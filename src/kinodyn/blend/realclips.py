@@ -10,6 +10,11 @@ BVH conversions start with a T-pose frame that is not capture: it is dropped (``
 - :func:`walk_run_walk`: a walk, a run and the walk again (ASF/AMC);
 - :func:`walk_stumble`: a walk into a stumble (CMU 104_13) and back to the walk (BVH);
 - :func:`walk_fall_getup`: a walk into a fall on the face (90_16), a get-up (140_01), then standing (BVH).
+
+Each script starts from and ends in a standing pose, its neutral pose: a frame of subject 01 standing
+before the first jump of 01_01 (ASF/AMC scripts) or of subject 90 standing before the fall of 90_16
+(BVH scripts), feet side by side (without one, the mixer would stand in the first clip's first double
+support, a walking stride).
 """
 
 from __future__ import annotations
@@ -35,6 +40,8 @@ def _amc_loco(folder: Path) -> dict:
     return {
         "walk": {"file": str(loco / "cmu_07_05-walk.amc"), "fps": 60, "start": 0.3167, "stop": 1.9167, "cyclic": True},
         "run": {"file": str(loco / "cmu_09_06-run.amc"), "fps": 60, "start": 0.2833, "stop": 1.0167, "cyclic": True},
+        # the neutral pose: subject 01 standing, feet side by side, before the first jump of 01_01
+        "stand": {"file": str(loco / "cmu_01_01.amc"), "fps": 60, "start": 0.3, "stop": 0.5},
     }
 
 
@@ -53,7 +60,7 @@ def fig12_script(folder, fight=("cmu_135_06-martialArts.amc", 8.9, 11.1)):
     clips["fight"] = {"file": str(folder / "fighting" / name), "fps": 60, "start": a, "stop": b}
     clips["jump"] = {"file": str(folder / "locomotion" / "cmu_01_01.amc"), "fps": 60, "start": 1.0, "stop": 3.2}
     return parse_script({
-        "name": "cmu_fig12", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "clips": clips,
+        "name": "cmu_fig12", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "clips": clips, "neutral": "stand",
         "actions": [
             {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
             {"clip": "run", "start": 2.8, "stop": 6.0, "priority": 1},
@@ -63,18 +70,25 @@ def fig12_script(folder, fight=("cmu_135_06-martialArts.amc", 8.9, 11.1)):
             {"clip": "jump", "start": 11.8, "priority": 2}]})
 
 
-def walk_run_walk(folder):
-    """A CMU walk cycle (07_05), a run cycle (09_06), the walk again."""
+def walk_run_walk(folder, neutral: str | None = "stand"):
+    """A CMU walk cycle (07_05), a run cycle (09_06), the walk again, from and back to standing (01_01);
+    ``neutral=None``: from and to the walk's first double support instead (no standing start or stop)."""
     from kinodyn.blend.script import parse_script
 
-    if not _have(folder, "locomotion/cmu_07_05-walk.amc", "locomotion/cmu_09_06-run.amc"):
+    if not _have(folder, "locomotion/cmu_07_05-walk.amc", "locomotion/cmu_09_06-run.amc", "locomotion/cmu_01_01.amc"):
         return None
     return parse_script({
         "name": "cmu_walk_run_walk", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "clips": _amc_loco(Path(folder)),
+        "neutral": neutral,
         "actions": [
             {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
             {"clip": "run", "start": 2.8, "stop": 6.0, "priority": 1},
             {"clip": "walk", "start": 5.8, "stop": 9.0, "priority": 1, "key": "walk_again"}]})
+
+
+def _bvh_stand(folder: Path) -> dict:
+    # the neutral pose: subject 90 standing, feet side by side, before the fall of 90_16
+    return {"file": str(folder / "reactions" / "cmu_90_16.bvh"), "drop_first": 1, "fps": 60, "start": 0.3, "stop": 0.5}
 
 
 def _bvh_walk(folder: Path) -> dict:
@@ -89,11 +103,11 @@ def walk_stumble(folder):
     from kinodyn.blend.script import parse_script
 
     folder = Path(folder)
-    if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_104_13.bvh"):
+    if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_104_13.bvh", "reactions/cmu_90_16.bvh"):
         return None
     return parse_script({
-        "name": "cmu_walk_stumble", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5,
-        "clips": {"walk": _bvh_walk(folder),
+        "name": "cmu_walk_stumble", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "neutral": "stand",
+        "clips": {"stand": _bvh_stand(folder), "walk": _bvh_walk(folder),
                   "stumble": {"file": str(folder / "reactions" / "cmu_104_13.bvh"), "drop_first": 1, "fps": 60,
                               "start": 2.0, "stop": 4.5}},
         "actions": [
@@ -111,8 +125,8 @@ def walk_fall_getup(folder):
     if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_90_16.bvh", "reactions/cmu_140_01.bvh"):
         return None
     return parse_script({
-        "name": "cmu_walk_fall_getup", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5,
-        "clips": {"walk": _bvh_walk(folder),
+        "name": "cmu_walk_fall_getup", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "neutral": "stand",
+        "clips": {"stand": _bvh_stand(folder), "walk": _bvh_walk(folder),
                   "fall": {"file": str(folder / "reactions" / "cmu_90_16.bvh"), "drop_first": 1, "fps": 60,
                            "start": 2.2, "stop": 4.6},
                   "getup": {"file": str(folder / "reactions" / "cmu_140_01.bvh"), "drop_first": 1, "fps": 60,

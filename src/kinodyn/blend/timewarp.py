@@ -31,11 +31,15 @@ import numpy as np
 
 from kinodyn.errors import ParameterError
 
+#: Share of the heaviest action's leg weight under which an action does not bound a step's duration.
+TEMPO_WEIGHT = 0.02
+
 __all__ = [
     "Segment",
     "WarpConfig",
     "WarpPlanner",
     "bounded_duration",
+    "bounded_tangents",
     "cardinal_tangents",
     "eval_poly",
     "hermite_coefficients",
@@ -56,14 +60,24 @@ class WarpConfig:
         min_rate, max_rate: bounds on every action's speed (action time per second): a step lasts the
             duration of equation 6 clipped so that each action present plays its span within them
             (where the spans differ too much for both bounds, the geometric middle of the two limits).
+        tempo: which actions bound a step's duration (:func:`bounded_duration`): ``"all"`` (every
+            action present) or ``"weighted"`` (by decreasing leg weight, as far as they agree; an
+            action under 2 % of the heaviest's weight does not count).
+        bounded_speed: keep the speed within ``[min_rate, max_rate]`` inside every segment too, not
+            only on average over each step (:func:`bounded_tangents`; the cubic otherwise dips and
+            overshoots between its knots).
     """
 
     tension: float = 0.0
     monotone: bool = True
     min_rate: float = 0.5
     max_rate: float = 2.0
+    tempo: str = "all"
+    bounded_speed: bool = False
 
     def __post_init__(self):
+        if self.tempo not in ("all", "weighted"):
+            raise ParameterError(f"tempo must be 'all' or 'weighted', got {self.tempo!r}")
         if not (np.isfinite(self.tension) and 0.0 <= self.tension < 1.0):
             raise ParameterError(f"tension must be in [0, 1), got {self.tension}")
         if not (0.0 < self.min_rate <= 1.0 <= self.max_rate and np.isfinite(self.max_rate)):
@@ -96,20 +110,61 @@ def step_durations(spans, weights) -> np.ndarray:
     return np.where(sw > 0, (w * d0).sum(axis=1) / np.where(sw > 0, sw, 1.0), mean)
 
 
-def bounded_duration(d: float, spans, min_rate: float, max_rate: float, weights=None) -> float:
-    """Step duration ``d`` clipped so that every span of ``spans`` (action time each action spends in the
-    step) plays at a rate within ``[min_rate, max_rate]``; where no duration does, the geometric middle
-    of the two limits (both bounds missed by the same factor). ``weights`` (the actions' leg weights)
-    are accepted for the caller's convenience and do not change the bounds."""
+def bounded_duration(d: float, spans, min_rate: float, max_rate: float, weights=None,
+                     by_weight: bool = False) -> float:
+    """Step duration ``d`` clipped so that the spans of ``spans`` (action time each action spends in the
+    step) play at rates within ``[min_rate, max_rate]``.
+
+    Default: every span bounds the step; where no duration fits them all, the geometric middle of the
+    two limits (both bounds missed by the same factor); ``weights`` do not change the bounds.
+
+    ``by_weight``: the actions are taken by decreasing leg weight (``weights``; default all equal), each
+    narrowing the range of durations its span allows, until one whose range no longer meets the
+    heavier ones' (spans that differ too much for both bounds): that one and the lighter ones play out
+    of their bounds, the heavier ones keep theirs. Actions under :data:`TEMPO_WEIGHT` of the heaviest
+    do not bound the step (a fading action no longer sets the tempo). Where two actions of the top
+    weight cannot agree, the geometric middle of their limits.
+    """
     w = [1.0] * len(spans) if weights is None else list(weights)
-    pairs = [(x, wi) for x, wi in zip(spans, w) if x > 0]
+    if not by_weight:
+        group = [x for x in spans if x > 0]
+        if not group:
+            return d
+        lo, hi = max(group) / max_rate, min(group) / min_rate
+        return min(max(d, lo), hi) if lo <= hi else math.sqrt(lo * hi)
+    pairs = sorted(((wi, x) for x, wi in zip(spans, w) if x > 0), key=lambda p: -p[0])
     if not pairs:
         return d
-    group = [x for x, _ in pairs]
-    lo, hi = max(group) / max_rate, min(group) / min_rate
-    if lo <= hi:
-        return min(max(d, lo), hi)
-    return math.sqrt(lo * hi)
+    top = pairs[0][0]
+    lo, hi = -math.inf, math.inf
+    for wi, x in pairs:
+        if wi < TEMPO_WEIGHT * top and lo > -math.inf:
+            break
+        a, b = x / max_rate, x / min_rate
+        if max(lo, a) > min(hi, b):
+            if wi >= top:  # two actions of the top weight that cannot agree
+                return math.sqrt(max(lo, a) * min(hi, b))
+            break
+        lo, hi = max(lo, a), min(hi, b)
+    return min(max(d, lo), hi)
+
+
+def bounded_tangents(m0: float, m1: float, sec: float, lo: float, hi: float) -> tuple[float, float]:
+    """End tangents of a cubic Hermite segment of secant ``sec`` whose speed stays within ``[lo, hi]``
+    (widened to include ``sec``).
+
+    The speed along the segment is a quadratic Bezier curve with control values ``m0``,
+    ``3 sec - m0 - m1`` and ``m1``, so it stays within the bounds when all three do. Only ``m1`` moves:
+    the speed at the segment's start, frozen by the previous segment, stays continuous (a jump in an
+    action's speed is a jump in the root's velocity); where no ``m1`` is enough, the closest one.
+    """
+    lo, hi = min(lo, sec), max(hi, sec)
+    m0 = min(max(m0, 0.0), 3.0 * sec)
+    a, b = max(lo, 3.0 * sec - m0 - hi), min(hi, 3.0 * sec - m0 - lo)
+    if a <= b:
+        return m0, min(max(m1, a), b)
+    # no end tangent is enough: the one closest to it, within the bounds
+    return m0, min(max(a if 3.0 * sec - m0 - hi > hi else b, lo), hi)
 
 
 def _limit(m, left, right):
@@ -308,7 +363,8 @@ class WarpPlanner:
                 T[s + 1] = ts
                 break
             d = num / den if den > 0 else tot / cnt  # equation 6 (plain mean when no weight)
-            d = bounded_duration(d, [sp for _, sp in spans], self.config.min_rate, self.config.max_rate, ws)
+            d = bounded_duration(d, [sp for _, sp in spans], self.config.min_rate, self.config.max_rate, ws,
+                                 self.config.tempo == "weighted")
             T[s + 1] = ts + max(d, 1e-4)
             for kn, sp in spans:
                 kn[s + 1] = kn[s] + sp
@@ -394,6 +450,8 @@ class WarpPlanner:
             if mono:
                 m0 = min(max(m0, 0.0), 3.0 * sec)
                 m1 = min(max(m1, 0.0), 3.0 * sec)
+            if self.config.bounded_speed:
+                m0, m1 = bounded_tangents(m0, m1, sec, self.config.min_rate, self.config.max_rate)
             tm.tangent = {k + 1: m1}
             dt_, dh = t1 - t0, h1 - h0
             c2 = (3.0 * dh / dt_ - 2.0 * m0 - m1) / dt_
