@@ -19,20 +19,21 @@ support, a walking stride).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
+
+from kinodyn.io import mocapdir
 
 __all__ = ["default_folder", "fig12_script", "scripts", "walk_fall_getup", "walk_run_walk", "walk_stumble"]
 
 
-def default_folder() -> Path:
-    """``$KINODYN_MOCAP``, else ``shared/mocap`` beside the repository checkout."""
-    env = os.environ.get("KINODYN_MOCAP")
-    return Path(env) if env else Path(__file__).resolve().parents[3] / ".." / "shared" / "mocap"
+def default_folder() -> Path | None:
+    """The motion-capture folder (:func:`kinodyn.io.mocapdir.find`: ``$KINODYN_MOCAP``, else
+    ``shared/mocap`` beside the checkout), or None when there is none."""
+    return mocapdir.find()
 
 
-def _have(folder: Path, *files) -> bool:
-    return all((Path(folder) / f).is_file() for f in files)
+def _have(folder: Path | None, *files) -> bool:
+    return folder is not None and all((Path(folder) / f).is_file() for f in files)
 
 
 def _amc_loco(folder: Path) -> dict:
@@ -51,11 +52,11 @@ def fig12_script(folder, fight=("cmu_135_06-martialArts.amc", 8.9, 11.1)):
     jump (01_01)."""
     from kinodyn.blend.script import parse_script
 
-    folder = Path(folder)
     name, a, b = fight
     if not _have(folder, "locomotion/cmu_07_05-walk.amc", "locomotion/cmu_09_06-run.amc",
                  "locomotion/cmu_01_01.amc", f"fighting/{name}"):
         return None
+    folder = Path(folder)
     clips = _amc_loco(folder)
     clips["fight"] = {"file": str(folder / "fighting" / name), "fps": 60, "start": a, "stop": b}
     clips["jump"] = {"file": str(folder / "locomotion" / "cmu_01_01.amc"), "fps": 60, "start": 1.0, "stop": 3.2}
@@ -102,9 +103,9 @@ def walk_stumble(folder):
     walk again."""
     from kinodyn.blend.script import parse_script
 
-    folder = Path(folder)
     if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_104_13.bvh", "reactions/cmu_90_16.bvh"):
         return None
+    folder = Path(folder)
     return parse_script({
         "name": "cmu_walk_stumble", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "neutral": "stand",
         "clips": {"stand": _bvh_stand(folder), "walk": _bvh_walk(folder),
@@ -121,9 +122,9 @@ def walk_fall_getup(folder):
     (140_01, from 1.5 s), then the standing neutral pose."""
     from kinodyn.blend.script import parse_script
 
-    folder = Path(folder)
     if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_90_16.bvh", "reactions/cmu_140_01.bvh"):
         return None
+    folder = Path(folder)
     return parse_script({
         "name": "cmu_walk_fall_getup", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "neutral": "stand",
         "clips": {"stand": _bvh_stand(folder), "walk": _bvh_walk(folder),
@@ -141,7 +142,7 @@ def scripts(folder=None) -> dict:
     """``{name: Script}`` of every real-clip script whose files are in ``folder`` (default
     :func:`default_folder`)."""
     folder = Path(folder) if folder is not None else default_folder()
-    if not folder.is_dir():
+    if folder is None or not folder.is_dir():
         return {}
     out = {}
     for f in (fig12_script, walk_run_walk, walk_stumble, walk_fall_getup):
