@@ -310,14 +310,13 @@ def _choose(lookahead: Motion, library, skip: int, select, features, cfg: Respon
     classifier's clip (``select(features) -> (clip, probabilities)``) with the fast alignment."""
     pos, rot = body_tracks(lookahead)
     pos, rot = pos[skip:], rot[skip:]
-    sim = windows(pos, rot, library.window)
-    if len(sim) == 0:
+    if len(pos) < library.window:
         raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
     if select is None:
-        r = exhaustive(sim, library)
+        r = exhaustive(windows(pos, rot, library.window), library)
         return r.clip, r.sim_frame + skip, r.clip_frame, r.error, None
     k, probs = select(features)
-    a = fast_align(sim, (pos, rot), library, int(k), cfg.align)
+    a = fast_align(None, (pos, rot), library, int(k), cfg.align)
     return int(k), int(round(a.sim_frame)) + skip, int(round(a.clip_frame)), a.error, probs
 
 
