@@ -13,8 +13,8 @@ from kinodyn.response.align import continuous_error, continuous_error_reference,
 
 _TOL = 1e-9
 #: Fast alignment's error D against the exhaustive optimum on held-out cases: median and worst ratio.
-_RATIO_MEDIAN = 1.10
-_RATIO_WORST = 1.60
+_RATIO_MEDIAN = 1.02
+_RATIO_WORST = 1.10
 _NEAR_ZERO = 0.01  # D of a refined match where the exact match is 0 (0.5 mm per body)
 
 

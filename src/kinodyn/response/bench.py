@@ -6,6 +6,11 @@ against the exhaustive labels for both feature sets, the joint position differen
 motions of the two paths over the reaction, the end-to-end response time with the physics included, and
 dataset-generation throughput for the local and (when installed) the Ray backend.
 
+The fast path's time is reported whole (``fast_ms_per_impact``) and in its parts: ``selection_ms``
+(features and the compiled SVM vote) and ``alignment_ms`` (sampling and BFGS), with scikit-learn's own
+predict with probabilities beside them (``selection_ms_sklearn``). Each time is the best of a few
+repeats per throw, the median over the throws; numba runs on one thread for both paths.
+
 ``--quick`` scores the shipped models (no retraining) on fewer held-out throws; the full run retrains on
 5,500 freshly generated throws first and reports how many it used.
 """
