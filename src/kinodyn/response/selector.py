@@ -24,7 +24,9 @@ __all__ = ["Selector"]
 
 @numba.njit(cache=True, fastmath=True)
 def _kernel_values(sv, z, gamma, coef0, degree, kv):  # pragma: no cover - compiled
-    """``kv[k] = (gamma <sv_k, z> + coef0)^degree`` (the sums reassociated: vectorized)."""
+    """``kv[k] = (gamma <sv_k, z> + coef0)^degree`` (the sums reassociated: vectorized; libsvm sums in
+    its own order, so decision values agree to rounding, and the vote exactly unless one sits within
+    rounding of zero)."""
     for k in range(sv.shape[0]):
         acc = 0.0
         for i in range(sv.shape[1]):
@@ -32,7 +34,7 @@ def _kernel_values(sv, z, gamma, coef0, degree, kv):  # pragma: no cover - compi
         kv[k] = (gamma * acc + coef0) ** degree
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath=True)
 def _vote(x, mean, scale, sv, starts, coef, intercept, gamma, coef0, degree, dec):  # pragma: no cover - compiled
     """Index of the winning class for features ``x (n,)``; the pairwise decision values go into ``dec``."""
     kv = np.empty(sv.shape[0])
