@@ -113,7 +113,7 @@ def _explain(folder: Path, r, lib, model_used: bool) -> None:
     (folder / "explain.json").write_text(json.dumps(facts, indent=2) + "\n", encoding="utf-8")
     mark = (best.sim_frame + skip, best.clip_frame) if best.clip == r.clip_index else None
     plots.error_surface(full.surfaces[r.clip_index], folder / "error_surface.png", f"error D: {r.clip}",
-                        fast=(r.sim_frame, r.clip_frame), best=mark)
+                        fast=(r.sim_frame, r.clip_frame), best=mark, searched_from=skip)
     plots.timeline(r.stages, r.motion.fps, folder / "timeline.png", r.motion.name, r.impact_time)
 
 
