@@ -239,6 +239,7 @@ def _sample(sp, sr, lp, lr, wp, wt, ww, n_sim, stride, patience):  # pragma: no 
 
 
 _CACHE = 4  # windows kept per side while refining: a gradient reuses the windows at the current point
+_XTOL = 0.01  # frames: BFGS stops once a step moves the timing less (the pipeline rounds it to frames)
 
 
 @numba.njit(cache=True)
@@ -320,6 +321,9 @@ def _bfgs(tracks, caches, x0, hi, wp, wt, ww, h, max_iter, max_step, gtol):  # p
             alpha *= 0.5
         if f_new > f:  # no decrease along the direction: stop here
             return x, f, evals, False
+        step = x_new - x
+        if step[0] ** 2 + step[1] ** 2 < _XTOL ** 2:  # moving by less than _XTOL frames: done
+            return x_new, f_new, evals, True
         _gradient(tracks, caches, x_new, hi, wp, wt, ww, h, g_new)
         evals += 4
         s, yv = x_new - x, g_new - g
