@@ -150,3 +150,24 @@ def test_10k_frames_3_characters_under_15_mb_and_plays(tmp_path):
     assert check.distinct_frames >= 5
     assert check.fps > 2.0
     assert saturated_pixels(check.screenshot) > 300
+
+
+def test_a_tinted_stage_bar_colours_the_body_by_stage(drv, tmp_path):
+    from kinodyn.plotting import style
+    from kinodyn.viz.objects import Stages
+
+    walk = library.load("walk")
+    path = tmp_path / "stages.html"
+    spans = [(0.0, 0.5, "motion data"), (0.5, 1.0, "simulation"), (1.0, 1.5, "transition")]
+    html.write(path, walk, [Stages(spans, 0, tint=True)])
+    open_page(drv, path)
+    own = drv.execute_script("return window.kinodynViewer.viewer.chars[0].spec.color")
+    body = "Array.from(window.kinodynViewer.viewer.world.bodies.geometry.attributes.color.array.slice(0, 3))"
+    seen = {}
+    for t, want in ((0.75, style.STAGE_COLORS["simulation"]), (0.25, style.STAGE_COLORS["motion data"]),
+                    (1.8, own)):
+        drv.execute_script(f"window.kinodynViewer.pause(); window.kinodynViewer.seek({t})")
+        assert wait_for(drv, f"window.kinodynViewer.viewer.chars[0].tintNow === '{want}'"), (t, want)
+        seen[t] = drv.execute_script(f"return {body}")
+    assert seen[0.75] != seen[0.25] != seen[1.8], "the body's vertex colours follow the stage"
+    assert drv.execute_script("return window.kinodynViewer.errors") == []

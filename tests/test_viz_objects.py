@@ -124,6 +124,9 @@ def test_props_forces_markers_and_stages_reach_the_page(walk):
     bars = {p["label"]: p for p in s["phases"]}
     assert set(bars) == {"walk support", "stages"}, "stages add a bar; the support bar stays"
     assert bars["stages"]["colors"]["simulation"] == style.STAGE_COLORS["simulation"]
+    assert bars["stages"]["tint"] is False and bars["walk support"]["tint"] is False
+    tinted = page_data(html.to_html(walk, [Stages(stages.spans, 0, tint=True)]))["scenes"][0]["phases"]
+    assert [p["tint"] for p in tinted] == [True], "a tinted stage bar tells the page to colour the body"
     data = page_data(text)
     assert data["phaseColors"] == style.PHASE_COLORS and data["stageColors"] == style.STAGE_COLORS
     ch = s["characters"][0]

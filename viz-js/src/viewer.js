@@ -260,10 +260,12 @@ class Bodies {
     const idx = new (nv > 65535 ? Uint32Array : Uint16Array)(ni);
     this.sections = [];  // per level: {start: first index, per: indices a bone}
     let v0 = 0, i0 = 0;
+    for (const ch of chars) ch.colorRuns = [];  // per level: [first vertex, vertices a bone]
     temps.forEach((t) => {
       this.sections.push({ start: i0, per: t.idx.length });
       let slot = 0;
       for (const ch of chars) {
+        ch.colorRuns.push([v0, t.verts]);
         const base = colorOf(ch.spec.color), sides = ch.spec.sides;
         const tints = [base.clone().lerp(new THREE.Color(0xffffff), 0.38), base, base.clone().multiplyScalar(0.62)];
         for (let b = 0; b < ch.bones.length; b++, slot++) {
@@ -314,6 +316,21 @@ class Bodies {
     this.mesh.name = ghost ? 'ghosts' : 'bodies';
     if (ghost) this.mesh.renderOrder = 5;
     this.mesh.frustumCulled = false;
+  }
+
+  // Draw one character's bones in another colour (left lighter, right darker, as built).
+  recolor(ch, color) {
+    const col = this.geometry.attributes.color, a = col.array, base = colorOf(color), sides = ch.spec.sides;
+    const tints = [base.clone().lerp(new THREE.Color(0xffffff), 0.38), base, base.clone().multiplyScalar(0.62)];
+    for (const [v0, per] of ch.colorRuns) {
+      for (let b = 0; b < ch.bones.length; b++) {
+        const c = sides ? tints[1 + sides[ch.bones[b]]] : base;
+        for (let v = v0 + b * per, e = v0 + (b + 1) * per; v < e; v++) {
+          a[3 * v] = c.r; a[3 * v + 1] = c.g; a[3 * v + 2] = c.b;
+        }
+      }
+    }
+    col.needsUpdate = true;
   }
 
   // Bone end points and radii of one character's current pose.
@@ -1342,6 +1359,7 @@ class Viewer {
     if (marks) marks.begin();
     for (const ch of this.chars || []) ch.update(this.t, this.opts, this.world);
     if (marks) marks.end();
+    this.tintByStage();
     for (const k of ['bodies', 'ghosts']) {
       const bodies = this.world[k];
       if (!bodies) continue;
@@ -1353,6 +1371,19 @@ class Viewer {
     }
     for (const p of this.props || []) p.update(this.t, this.opts);
     for (const f of this.forces || []) f.update(this.t, this.opts);
+  }
+
+  // Bars drawn with tint (a response's stages): the character's body takes the colour of the span it
+  // is in, its own colour outside every span; bodies are recoloured only when that colour changes.
+  tintByStage() {
+    const colors = { ...(this.data.phaseColors || {}), ...(this.data.stageColors || {}) };
+    for (const ph of this.spec?.phases || []) {
+      const ch = ph.tint && this.chars ? this.chars[ph.char] : null;
+      if (!ch || !ch.bodies) continue;
+      const span = ph.spans.find(([a, b]) => this.t >= a && this.t < b);
+      const want = span ? ((ph.colors && ph.colors[span[2]]) || colors[span[2]] || '#888') : ch.spec.color;
+      if (ch.tintNow !== want) { ch.bodies.recolor(ch, want); ch.tintNow = want; }
+    }
   }
 
   // Pixels a metre on screen at a character's root (from the camera's last placement).

@@ -113,8 +113,46 @@ def _explain(folder: Path, r, lib, model_used: bool) -> None:
     (folder / "explain.json").write_text(json.dumps(facts, indent=2) + "\n", encoding="utf-8")
     mark = (best.sim_frame + skip, best.clip_frame) if best.clip == r.clip_index else None
     plots.error_surface(full.surfaces[r.clip_index], folder / "error_surface.png", f"error D: {r.clip}",
-                        fast=(r.sim_frame, r.clip_frame), best=mark)
+                        fast=(r.sim_frame, r.clip_frame), best=mark, searched_from=skip)
     plots.timeline(r.stages, r.motion.fps, folder / "timeline.png", r.motion.name, r.impact_time)
+
+
+#: The output's stages in order, as named in :data:`kinodyn.plotting.style.STAGE_COLORS`.
+STAGE_NAMES = ("motion data", "simulation", "transition", "clip")
+
+
+def _blows(hits) -> list:
+    """The hits grouped by what delivered them (a ball touching chest and arm is one blow): per source,
+    ``(first time, impulse-weighted point (3,), total impulse (3,), kind, bodies)``."""
+    out = []
+    for src in dict.fromkeys(h.source for h in hits):
+        group = [h for h in hits if h.source == src]
+        j = np.array([h.impulse for h in group], dtype=np.float64)
+        w = np.linalg.norm(j, axis=1) + 1e-12
+        point = (w[:, None] * np.array([h.point for h in group])).sum(axis=0) / w.sum()
+        bodies = sorted({h.body for h in group}, key=lambda b: -sum(
+            np.linalg.norm(h.impulse) for h in group if h.body == b))
+        out.append((min(h.time for h in group), point, j.sum(axis=0), group[0].kind, bodies))
+    return out
+
+
+def viewer_overlays(r, character: int = 0) -> list:
+    """What the viewer draws for response ``r`` of character ``character``: the timeline bar coloured by
+    stage (motion data, simulation, transition, clip), the body tinted by the stage it is in, a marker
+    where each reacting stage begins, and one impact arrow per blow (where it landed, which way it
+    pushed), labelled with what hit which bodies and how hard.
+    """
+    from kinodyn.plotting import style
+    from kinodyn.viz.html import Impact, Marker, Stages
+
+    fps = r.motion.fps
+    frames = (r.stages.motion, r.stages.simulation, r.stages.transition, r.stages.clip)
+    spans = [(a / fps, b / fps, n) for n, (a, b) in zip(STAGE_NAMES, frames) if b > a]
+    out = [Stages(spans, character, label=f"{r.clip} stages" if r.clip else "stages", tint=True)]
+    out += [Marker(a, "", style.STAGE_COLORS[n]) for a, _, n in spans if n != STAGE_NAMES[0]]
+    for t, point, j, kind, bodies in _blows(r.hits):
+        out.append(Impact(float(t), point, j, character, f"{kind} on {', '.join(bodies)}: {np.linalg.norm(j):.0f} N s"))
+    return out
 
 
 def _play(args) -> int:
@@ -139,7 +177,7 @@ def _play(args) -> int:
     if args.html:
         from kinodyn.viz.html import write
 
-        write(args.html, {"response": r.motion}, title=f"{r.motion.name}")
+        write(args.html, {"response": r.motion}, ["contacts", *viewer_overlays(r)], title=f"{r.motion.name}")
     if args.explain:
         _explain(Path(args.explain), r, lib, select is not None)
     print(f"wrote {args.output}: {r.motion.num_frames} frames; hit at {r.impact_time:.2f} s "

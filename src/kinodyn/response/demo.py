@@ -23,6 +23,19 @@ def _cases():
             "punch": (data.load("idle"), Attacker(data.load("punch"), (1.0, 0.0, np.pi)))}
 
 
+def _scene(name: str, r, impact):
+    """The viewer scene of one response: the character, the opponent for a punch, the impact arrow and
+    the stages (:func:`kinodyn.response.command.viewer_overlays`)."""
+    from kinodyn.response.command import viewer_overlays
+    from kinodyn.response.pipeline import Attacker
+    from kinodyn.viz.html import Scene
+
+    motions = {name: r.motion}
+    if isinstance(impact, Attacker):  # it plays its clip kinematically where it stands
+        motions["opponent"] = impact.motion.aligned_to(np.asarray(impact.at, dtype=np.float64), 0)
+    return Scene(motions, ["contacts", *viewer_overlays(r)], name=f"{name}: {r.clip}")
+
+
 def demo(out: Path) -> list[str]:
     from kinodyn.io import save
     from kinodyn.response.classifier import ReactionModel
@@ -35,19 +48,19 @@ def demo(out: Path) -> list[str]:
     out.mkdir(parents=True, exist_ok=True)
     lib = builtin()
     model = ReactionModel.load(DEFAULT_MODEL / "large", lib) if (DEFAULT_MODEL / "large").is_dir() else None
-    lines, motions = [], {}
+    lines, scenes = [], []
     for name, (base, impact) in _cases().items():
         r = respond(base, lib, impact, model)
         save(out / f"{name}.bvh", r.motion)
-        motions[name] = r.motion
+        scenes.append(_scene(name, r, impact))
         timeline(r.stages, r.motion.fps, out / f"{name}_timeline.png", r.motion.name, r.impact_time)
         lines.append(f"{name}.bvh: hit at {r.impact_time:.2f} s ({np.linalg.norm(r.impulse):.0f} N s) -> {r.clip} "
                      f"from frame {r.clip_frame} after {r.sim_frame} simulated frames (D = {r.error:.2f})")
     try:
         from kinodyn.viz.html import write
 
-        write(out / "responses.html", motions, layout="row", title="dynamic responses")
-        lines.append("responses.html: every response side by side")
+        write(out / "responses.html", scenes=scenes, title="dynamic responses")
+        lines.append("responses.html: one scene per response (impact arrow, stages coloured on the timeline)")
     except ImportError:  # pragma: no cover - viz extra absent
         pass
     return lines

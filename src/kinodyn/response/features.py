@@ -17,6 +17,7 @@ States are :class:`kinodyn.physics.CharacterState` (uses that public type only).
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from kinodyn.errors import ParameterError
@@ -31,10 +32,26 @@ SPINE = ("Hips", "Spine", "Spine1", "Head")
 FEET = ("LeftFoot", "RightFoot")
 
 
+@numba.njit(cache=True)
+def _rotate(q, v):  # pragma: no cover - compiled
+    """:func:`kinodyn.math.quat.mul_vec` of one ``q (4,)`` and vectors ``v (N, 3)``, the same arithmetic in
+    the same order (bit for bit; without numpy's per-call overhead, which is most of a feature vector)."""
+    w, ux, uy, uz = q[0], q[1], q[2], q[3]
+    out = np.empty_like(v)
+    for n in range(v.shape[0]):
+        vx, vy, vz = v[n, 0], v[n, 1], v[n, 2]
+        tx, ty, tz = 2.0 * (uy * vz - uz * vy), 2.0 * (uz * vx - ux * vz), 2.0 * (ux * vy - uy * vx)
+        out[n, 0] = vx + w * tx + (uy * tz - uz * ty)
+        out[n, 1] = vy + w * ty + (uz * tx - ux * tz)
+        out[n, 2] = vz + w * tz + (ux * ty - uy * tx)
+    return out
+
+
 def _frame(state0):
     """Facing frame at the contact: origin under the com, rotation removing the pelvis' heading."""
-    h = quat.heading(state0.quat[0], [1.0, 0.0, 0.0])
-    q = quat.from_heading(-h)
+    f = _rotate(np.asarray(state0.quat[0], dtype=np.float64), np.array([[1.0, 0.0, 0.0]]))[0]
+    h = float(np.arctan2(f[1], f[0]))  # quat.heading(q, +X), in (-pi, pi]
+    q = quat.from_heading(-(h + 2.0 * np.pi if h <= -np.pi else h))
     origin = np.array([state0.com[0], state0.com[1], 0.0])
     return q, origin
 
@@ -52,26 +69,24 @@ def _index(names, wanted, fallback: str) -> list[int]:
 def _large(states, q, origin) -> np.ndarray:
     names = list(states[0].names)
     spine, feet = _index(names, SPINE, "large"), _index(names, FEET, "large")
-    out = []
-    for s in states:
-        out += [quat.mul_vec(q, s.pos[spine] - origin).ravel(), quat.abs(quat.mul(q, s.quat[spine])).ravel(),
-                quat.mul_vec(q, s.linvel[spine]).ravel(), quat.mul_vec(q, s.angvel[spine]).ravel(),
-                quat.mul_vec(q, s.pos[feet] - origin).ravel(), quat.mul_vec(q, s.linvel[feet]).ravel(),
-                s.feet.astype(np.float64)]
-    return np.concatenate(out)
+    pos = np.stack([s.pos for s in states])  # (3, B, 3); every slice rotated in one call below
+    vel = np.stack([s.linvel for s in states])
+    vec = np.concatenate([pos[:, spine] - origin, vel[:, spine], np.stack([s.angvel[spine] for s in states]),
+                          pos[:, feet] - origin, vel[:, feet]], axis=1)  # (3, 18, 3)
+    r = _rotate(q, vec.reshape(-1, 3)).reshape(len(states), -1)
+    rot = quat.abs(quat.mul(q, np.stack([s.quat[spine] for s in states]))).reshape(len(states), -1)
+    feet_on = np.stack([s.feet for s in states]).astype(np.float64)
+    return np.concatenate([r[:, :12], rot, r[:, 12:], feet_on], axis=1).ravel()
 
 
 def _small(states, q, origin) -> np.ndarray:
     names = list(states[0].names)
     chest, pelvis = _index(names, ("Spine1",), "small")[0], _index(names, ("Hips",), "small")[0]
-    out = []
-    for s in states:
-        out += [np.array([s.com[2]]), quat.mul_vec(q, s.com_vel)]
-    for s in states[1:]:
-        out.append(quat.mul_vec(q, s.angvel[chest])[:2])
+    vec = np.stack([s.com_vel for s in states] + [s.angvel[chest] for s in states[1:]])  # (5, 3)
+    r = _rotate(q, vec)
     up = quat.mul_vec(quat.mul(q, states[-1].quat[pelvis]), [0.0, 0.0, 1.0])
-    out += [up[:2], states[-1].feet.astype(np.float64)]
-    return np.concatenate(out)
+    com = np.concatenate([np.array([[s.com[2]] for s in states]), r[:3]], axis=1).ravel()
+    return np.concatenate([com, r[3:, :2].ravel(), up[:2], states[-1].feet.astype(np.float64)])
 
 
 def features(states, kind: str = "large") -> np.ndarray:

@@ -126,6 +126,8 @@ class Response:
         probabilities: the classifier's class probabilities (None for the exhaustive choice).
         interrupted: the base motion as it would have played on, over the output's frames up to the
             end of the transition (the reference a reaction is judged against).
+        hits: the :class:`kinodyn.physics.Impact` records the character received (time, body, point,
+            impulse, source), for the viewer's impact arrows.
     """
 
     motion: Motion
@@ -142,6 +144,7 @@ class Response:
     features: tuple
     probabilities: np.ndarray | None = None
     interrupted: Motion | None = None
+    hits: tuple = ()
 
 
 def eieo(u) -> np.ndarray:
@@ -310,14 +313,13 @@ def _choose(lookahead: Motion, library, skip: int, select, features, cfg: Respon
     classifier's clip (``select(features) -> (clip, probabilities)``) with the fast alignment."""
     pos, rot = body_tracks(lookahead)
     pos, rot = pos[skip:], rot[skip:]
-    sim = windows(pos, rot, library.window)
-    if len(sim) == 0:
+    if len(pos) < library.window:
         raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
     if select is None:
-        r = exhaustive(sim, library)
+        r = exhaustive(windows(pos, rot, library.window), library)
         return r.clip, r.sim_frame + skip, r.clip_frame, r.error, None
     k, probs = select(features)
-    a = fast_align(sim, (pos, rot), library, int(k), cfg.align)
+    a = fast_align(None, (pos, rot), library, int(k), cfg.align)
     return int(k), int(round(a.sim_frame)) + skip, int(round(a.clip_frame)), a.error, probs
 
 
@@ -439,5 +441,6 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
     out = out.replace(name=f"{base.name} -> {clip.name}")
     stages = Stages((0, c), (c, t0), (t0, t1 + 1), (t1 + 1, out.num_frames))
     impulse = _impulse(world, hit)
+    hits = tuple(i for i in world.impacts if i.character == hit.name)
     return Response(out, stages, clip.name, k, fs, fm, float(err), c / fps, impulse, sim[c:], lookahead,
-                    states, probs, track[:t1 + 1])
+                    states, probs, track[:t1 + 1], hits)

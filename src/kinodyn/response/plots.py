@@ -8,12 +8,14 @@ from pathlib import Path
 import numpy as np
 
 from kinodyn.io.atomic import atomic_path
+from kinodyn.plotting import style
 
 __all__ = ["STAGE_COLORS", "error_surface", "timeline"]
 
-#: Colours of the stages: motion data, simulation, transition, clip.
-STAGE_COLORS = ("#4c72b0", "#dd8452", "#8172b3", "#55a868")
 STAGE_NAMES = ("motion data", "simulation", "transition", "clip")
+#: Colours of the stages (motion data, simulation, transition, clip): the viewer's, from
+#: :data:`kinodyn.plotting.style.STAGE_COLORS`.
+STAGE_COLORS = tuple(style.STAGE_COLORS[n] for n in STAGE_NAMES)
 
 
 def _save(fig, path) -> Path:
@@ -23,30 +25,37 @@ def _save(fig, path) -> Path:
     return path
 
 
-def error_surface(surface: np.ndarray, path, title: str = "", fast=None, best=None, offset: int = 0) -> Path:
+def error_surface(surface: np.ndarray, path, title: str = "", fast=None, best=None, offset: int = 0,
+                  searched_from: int | None = None) -> Path:
     """Plot an ``(S, M)`` error surface D over (simulation frame, clip frame) to ``path`` (PNG).
 
     Args:
         fast: optional ``(sim_frame, clip_frame)`` of the fast alignment, marked with a cross.
         best: optional ``(sim_frame, clip_frame)`` of the exhaustive optimum, marked with a circle.
         offset: simulation frame of the surface's first row.
+        searched_from: optional first simulation frame the searches may choose (earlier rows fall inside
+            the shortest transition); the rows before it are greyed out.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
     s, m = surface.shape
     im = ax.imshow(surface, origin="lower", aspect="auto", cmap="viridis",
                    extent=(-0.5, m - 0.5, offset - 0.5, offset + s - 0.5))
     fig.colorbar(im, ax=ax, label="window error D")
+    if searched_from is not None and searched_from > offset:
+        ax.axhspan(offset - 0.5, min(searched_from, offset + s) - 0.5, color="white", alpha=0.6, lw=0,
+                   label="shorter than the shortest transition")
     if best is not None:
         ax.plot(best[1], best[0], "o", mfc="none", mec="white", ms=10, label="exhaustive optimum")
     if fast is not None:
         ax.plot(fast[1], fast[0], "x", color="red", ms=9, label="fast alignment")
-    if best is not None or fast is not None:
-        ax.legend(loc="upper right", fontsize=8)
+    if best is not None or fast is not None or searched_from is not None:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3, fontsize=8, facecolor="0.55",
+                  labelcolor="white", edgecolor="none")
     ax.set_xlabel("clip frame")
     ax.set_ylabel("simulation frame (from the choice)")
     ax.set_title(title or "alignment error")

@@ -198,7 +198,8 @@ def scene_data(world: World, compress: bool = True, impulse_scale: float = 0.02)
     for p in world.phases:
         spans = [[round(float(a), 4), round(float(b), 4), str(lab)] for a, b, lab in p.spans]
         cols = {str(k): style.color(v) for k, v in (p.colors or {}).items()}
-        phases.append({"label": p.label, "char": p.character, "spans": spans, "colors": cols})
+        phases.append({"label": p.label, "char": p.character, "spans": spans, "colors": cols,
+                       "tint": bool(p.tint) and p.character is not None})
     trajs = [{"points": _r(np.asarray(t.points, dtype=np.float64), 3), "color": style.color(t.color),
               "label": t.label} for t in world.trajectories]
     return {"name": world.name, "fps": world.fps, "duration": world.duration, "floor": world.floor,

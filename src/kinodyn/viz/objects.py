@@ -177,13 +177,16 @@ class Stages:
     """Stages of one character's timeline: ``(start_s, stop_s, stage)`` spans in scene time.
 
     Stage names with a colour in :data:`kinodyn.plotting.style.STAGE_COLORS` (``motion data``,
-    ``simulation``, ``transition``, ``clip``) take it; others take ``colors`` or grey.
+    ``simulation``, ``transition``, ``clip``) take it; others take ``colors`` or grey. With ``tint``
+    the character's body is also drawn in the colour of the stage it is in (its own colour outside
+    every span).
     """
 
     spans: Sequence[tuple[float, float, str]]
     character: int | None = None
     label: str = "stages"
     colors: Mapping[str, str] | None = None
+    tint: bool = False
 
     def colored_spans(self) -> tuple[list[tuple[float, float, str]], dict[str, str]]:
         """Checked spans and the colour of every stage (for a :class:`kinodyn.viz.world.Phases` bar)."""

@@ -140,12 +140,14 @@ class Phases:
         label: the bar's title.
         character: index of the character it belongs to (for colouring), if any.
         colors: label -> colour; labels not listed use :data:`kinodyn.plotting.style.PHASE_COLORS`, then grey.
+        tint: draw the character's body in the colour of the span it is in (needs ``character``).
     """
 
     spans: Sequence[tuple[float, float, str]]
     label: str = "phases"
     character: int | None = None
     colors: Mapping[str, str] | None = None
+    tint: bool = False
 
 
 @dataclass(frozen=True)
@@ -478,7 +480,7 @@ def _classify(overlays) -> tuple[set, set, dict]:
         elif isinstance(ov, (Phases, Stages)):
             if isinstance(ov, Stages):
                 spans, cols = ov.colored_spans()
-                got["stages"].append(Phases(spans, ov.label, ov.character, cols))
+                got["stages"].append(Phases(spans, ov.label, ov.character, cols, bool(ov.tint)))
             else:
                 got["phases"].append(ov)
             wanted.add("phases")

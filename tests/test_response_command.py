@@ -1,0 +1,64 @@
+"""``kinodyn response play``'s viewer page: the impact arrow where the ball hit, the stages coloured."""
+
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from kinodyn.plotting import style
+from kinodyn.response.command import STAGE_NAMES, viewer_overlays
+
+
+def _hit(t, body, point, impulse, source="ball0", kind="projectile"):
+    return SimpleNamespace(time=t, body=body, point=np.array(point, float), impulse=np.array(impulse, float),
+                           source=source, kind=kind)
+
+
+def test_hits_of_one_blow_make_one_arrow():
+    from kinodyn.response.pipeline import Stages
+    from kinodyn.viz.html import Impact, Marker
+    from kinodyn.viz.objects import Stages as Bar
+
+    hits = (_hit(1.0, "Spine1", (0, 0, 1.3), (-30, 0, 0)), _hit(1.01, "LeftArm", (0, 0.2, 1.4), (-10, 0, 0)),
+            _hit(1.2, "Head", (0, 0, 1.7), (0, 5, 0), "b/RightHand", "character"))
+    r = SimpleNamespace(motion=SimpleNamespace(fps=60.0), clip="fall_side", hits=hits,
+                        stages=Stages((0, 60), (60, 72), (72, 90), (90, 150)))
+    out = viewer_overlays(r, 0)
+    arrows = [o for o in out if isinstance(o, Impact)]
+    assert len(arrows) == 2, "the ball's two contacts are one blow, the fist another"
+    np.testing.assert_allclose(arrows[0].impulse, (-40, 0, 0))
+    np.testing.assert_allclose(arrows[0].point, (0, 0.05, 1.325))  # impulse-weighted
+    assert arrows[0].time == 1.0 and arrows[0].label == "projectile on Spine1, LeftArm: 40 N s"
+    bar = next(o for o in out if isinstance(o, Bar))
+    assert bar.tint and [s[2] for s in bar.spans] == list(STAGE_NAMES)
+    assert bar.spans[1][:2] == (1.0, 1.2) and bar.spans[-1][1] == 2.5
+    assert [m.color for m in out if isinstance(m, Marker)] == [style.STAGE_COLORS[n] for n in STAGE_NAMES[1:]]
+
+
+def test_play_writes_a_page_with_the_impact_and_the_stages(tmp_path):
+    pytest.importorskip("sklearn")
+    from kinodyn.cli import main
+    from kinodyn.viz import html
+
+    if not html.bundle_available():
+        pytest.skip("viewer bundle not built (make)")
+    page = tmp_path / "r.html"
+    assert main(["response", "play", "--ball", "9,180,1.5,chest", "-o", str(tmp_path / "r.bvh"),
+                 "--html", str(page)]) == 0
+    text = page.read_text(encoding="utf-8")
+    data = json.loads(text.split('id="kinodyn-data"')[1].split(">", 1)[1].split("</script>")[0])
+    scene = data["scenes"][0]
+    bar = next(p for p in scene["phases"] if p["label"].endswith("stages"))
+    assert bar["tint"] and [s[2] for s in bar["spans"]] == list(STAGE_NAMES)
+    assert all(a[1] == b[0] for a, b in zip(bar["spans"], bar["spans"][1:])), "the stages follow one another"
+    (imp,) = scene["impacts"]
+    assert abs(imp["t"] - bar["spans"][1][0]) < 0.02, "the arrow shows when the simulation starts"
+    assert imp["impulse"][0] < -10 and abs(imp["impulse"][0]) > 3 * abs(imp["impulse"][1]), \
+        "a ball flying along -X (direction 180) pushes along -X"
+    pos = html.decode_positions(scene["characters"][0]["pos"], scene["characters"][0]["frames"],
+                                len(scene["characters"][0]["parents"]))
+    f = int(round(imp["t"] * scene["characters"][0]["fps"]))
+    assert np.linalg.norm(pos[f] - np.array(imp["point"]), axis=1).min() < 0.25, "the arrow ends on the body"

@@ -1,0 +1,70 @@
+"""The compiled choice of clip (kinodyn.response.selector) against scikit-learn's own prediction."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from kinodyn.errors import ParameterError
+from kinodyn.response import builtin
+from kinodyn.response.classifier import ReactionModel
+from kinodyn.response.command import DEFAULT_MODEL
+from kinodyn.response.selector import Selector
+
+pytest.importorskip("sklearn")
+pytest.importorskip("skops")
+
+
+@pytest.fixture(scope="module", params=["large", "small"])
+def model(request):
+    return ReactionModel.load(DEFAULT_MODEL / request.param, builtin())
+
+
+def _rows(rng, model, n):
+    """Feature rows spread like the training data (the scaler's mean and spread, varied in width)."""
+    scaler = model.pipeline.steps[0][1]
+    return scaler.mean_ + rng.normal(size=(n, len(scaler.mean_))) * scaler.scale_ * rng.uniform(0.2, 2.0, (n, 1))
+
+
+def test_predicts_what_the_model_predicts(rng, model):
+    x = _rows(rng, model, 2000)
+    want = model.predict_features(x)
+    assert len(set(want)) >= 5, "the rows reach several classes"
+    np.testing.assert_array_equal(Selector(model).predict_features(x), want)
+
+
+def test_decision_values_are_libsvm_s(rng, model):
+    svc = copy.deepcopy(model.pipeline.steps[1][1])
+    svc.decision_function_shape = "ovo"
+    x = _rows(rng, model, 20)
+    want = svc.decision_function(model.pipeline.steps[0][1].transform(x))
+    sel = Selector(model)
+    got = np.array([sel.decision_values(row) for row in x])
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+
+
+def test_chooses_from_states_as_the_model_does(model):
+    from kinodyn.data import library as data
+    from kinodyn.response.dataset import ball_for
+    from kinodyn.response.pipeline import observe
+
+    obs = observe(data.load("walk"), ball_for(1000, 3))
+    assert Selector(model).choose(obs.states) == model(obs.states)[0]
+
+
+def test_rejects_models_it_cannot_compile(model):
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVC
+
+    other = copy.copy(model)
+    other.pipeline = make_pipeline(StandardScaler(), SVC(kernel="rbf"))
+    with pytest.raises(ParameterError, match="polynomial"):
+        Selector(other)
+    other.pipeline = make_pipeline(SVC(kernel="poly"))
+    with pytest.raises(ParameterError, match="StandardScaler then SVC"):
+        Selector(other)
+    with pytest.raises(ParameterError, match="features a row"):
+        Selector(model).predict_features(np.zeros((1, 3)))
