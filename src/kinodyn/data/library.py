@@ -62,7 +62,8 @@ MIRRORED: dict[str, str] = {
     "flinch_side_right": "flinch_side_left",
 }
 _ASYMMETRIC = ("punch", "kick", "push", "step_forward_small", "step_forward_large", "step_back_small",
-               "step_back_large", "steps_back", "steps_forward", "fall_forward", "fall_backward", "fall_side")
+               "step_back_large", "steps_back", "steps_forward", "fall_forward", "fall_backward", "fall_side",
+               "roll_forward", "roll_backward")
 MIRRORED.update({f"{n}_mirror": n for n in _ASYMMETRIC})
 
 
@@ -78,7 +79,7 @@ def _mirror_description(text: str) -> str:
 _ORDER = ("idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push",
           "step_forward_small", "step_forward_large", "step_back_small", "step_back_large", "steps_back",
           "steps_forward", "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side",
-          "flinch_front",
+          "roll_forward", "roll_backward", "flinch_front",
           "flinch_side_left", "flinch_side_right", "flinch_back")
 
 
