@@ -21,7 +21,7 @@ motion data, simulation, transition and clip. Uses :mod:`kinodyn.physics` throug
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from kinodyn.motion import Motion
 from kinodyn.response.align import AlignConfig, fast_align
 from kinodyn.response.search import body_tracks, exhaustive, windows
 
-__all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "ease_weights", "eieo", "label", "looped",
+__all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "ease_weights", "eieo", "label", "label_search", "looped",
            "observe", "respond"]
 
 
@@ -384,12 +384,23 @@ def observe(base: Motion, impact, config: ResponseConfig = ResponseConfig(),
     return Observation(world, hit, track, c, t0, tuple(states), ahead.trajectory(ahead_hit))
 
 
+def label_search(obs: Observation, library, config: ResponseConfig = ResponseConfig()):
+    """The exhaustive search of an observation's lookahead (:class:`kinodyn.response.search.SearchResult`,
+    ``sim_frame`` counted from the choice frame), with every clip's best error D in ``per_clip``."""
+    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
+    pos, rot = body_tracks(obs.lookahead)
+    sim = windows(pos[skip:], rot[skip:], library.window)
+    if len(sim) == 0:
+        raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
+    r = exhaustive(sim, library)
+    return replace(r, sim_frame=r.sim_frame + skip)
+
+
 def label(obs: Observation, library, config: ResponseConfig = ResponseConfig()):
     """The exhaustive choice for an observation: ``(clip, sim_frame, clip_frame, error)`` with
     ``sim_frame`` counted from the choice frame (the training label of section 7.2)."""
-    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
-    k, fs, fm, err, _ = _choose(obs.lookahead, library, skip, None, obs.states, config)
-    return k, fs, fm, err
+    r = label_search(obs, library, config)
+    return r.clip, r.sim_frame, r.clip_frame, r.error
 
 
 def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseConfig = ResponseConfig(),
