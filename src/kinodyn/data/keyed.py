@@ -32,7 +32,8 @@ The file is meant to be read and edited by people. Its parts:
     - ``floor_guard`` (optional, for falls): after solving, wherever a joint or end site would dip
       under the floor the pelvis is lifted by a smoothed amount (planted feet stay where they are).
     - ``start`` (optional): per side ``[dx, dy, dheading]`` moving the starting foot from the neutral
-      stance.
+      stance, or a foot key ``{"ball" | "ankle": [x, y, z], "rot": [rx, ry, rz], "toe": deg}`` in the
+      world (a clip that starts lying down, as a fall ends).
 
 Interpolation is Catmull-Rom everywhere (easing in and out at the first and last keys).
 """
@@ -197,7 +198,10 @@ def _foot_key_state(side: str, key: dict, frame) -> P.FootState:
 
 def _foot_plan(side: str, actions: list[dict], root: _Root, start_offset=(0.0, 0.0, 0.0)) -> P.FootPlan:
     gx, gy, gh = root.ground(0.0)
-    plan = P.FootPlan(P.stance_state(side, gx, gy, gh, *start_offset))
+    if isinstance(start_offset, dict):
+        plan = P.FootPlan(_foot_key_state(side, start_offset, (0.0, 0.0, 0.0)))
+    else:
+        plan = P.FootPlan(P.stance_state(side, gx, gy, gh, *start_offset))
     for a in actions:
         if "step" in a:
             t0, t1 = (float(x) for x in a["step"])
@@ -263,6 +267,10 @@ def _lowest(motion) -> np.ndarray:
     return np.minimum(gp[..., 2].min(axis=1), ep[..., 2].min(axis=1))
 
 
+def _start(value):
+    return value if isinstance(value, dict) else tuple(value)
+
+
 def build(name: str, spec: dict | None = None) -> P.Assembled:
     """Generate the keyframed clip ``name`` (from ``keyframes.json`` unless ``spec`` is given)."""
     data = keyframe_data()
@@ -274,7 +282,7 @@ def build(name: str, spec: dict | None = None) -> P.Assembled:
     local = {j: (P.quat_spline(kt, q, times) if len(kt) > 1 else np.repeat(q[:1], len(times), 0))
              for j, q in keyed.items()}
     feet = {side: _foot_plan(side, spec.get("feet", {}).get(side, []), root,
-                             tuple(spec.get("start", {}).get(side, (0.0, 0.0, 0.0))))
+                             _start(spec.get("start", {}).get(side, (0.0, 0.0, 0.0))))
             for side in P.SIDES}
     hands = _hand_tracks(spec["hands"], times, root_pos, root_rot, local) if spec.get("hands") else {}
     tracks = P.BodyTracks(times, root_pos, root_rot, local, feet, hands)
