@@ -53,13 +53,23 @@ def test_features_do_not_depend_on_where_the_character_faces():
                                    err_msg=kind)
 
 
+def test_dataset_keeps_every_clips_best_error(small_set, lib):
+    """per_clip holds each clip's best exhaustive error D: the label is its argmin, the label's error its min."""
+    ok = small_set.valid()
+    assert small_set.per_clip.shape == (len(small_set), len(lib))
+    np.testing.assert_array_equal(small_set.per_clip[ok].argmin(axis=1), small_set.clip[ok])
+    np.testing.assert_array_equal(small_set.per_clip[ok].min(axis=1), small_set.error[ok])
+    assert np.all(np.isinf(small_set.per_clip[~ok]))
+
+
 def test_dataset_is_the_same_for_one_and_two_workers(small_set, tmp_path):
     two = generate(6, seed=3, workers=2, chunk_size=3, show_progress=False)
-    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "ball"):
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "ball"):
         np.testing.assert_array_equal(getattr(small_set, k), getattr(two, k), err_msg=k)
     small_set.save(tmp_path / "d.npz")
     back = Dataset.load(tmp_path / "d.npz")
     np.testing.assert_array_equal(back.large, small_set.large)
+    np.testing.assert_array_equal(back.per_clip, small_set.per_clip)
     assert back.meta == small_set.meta
     with pytest.raises(FileFormatError):
         np.savez(tmp_path / "other.npz", meta=np.array('{"format": "x"}'))
@@ -72,7 +82,7 @@ def test_dataset_is_the_same_from_the_ray_backend(small_set):
         remote = generate(6, seed=3, workers=2, chunk_size=3, backend="ray", show_progress=False)
     finally:
         ray.shutdown()
-    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "ball"):
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "ball"):
         np.testing.assert_array_equal(getattr(small_set, k), getattr(remote, k), err_msg=k)
 
 

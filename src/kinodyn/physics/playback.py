@@ -92,7 +92,7 @@ def lead_steps(body: CharacterBody, dt: float) -> np.ndarray:
 #: Recently sampled clips, by content (see :func:`sample_clip`): a response world plays the same looped base
 #: motion for every impact, and its servo feed-forward is most of the cost of a training case.
 _SAMPLED: OrderedDict = OrderedDict()
-_SAMPLED_MAX = 32
+_SAMPLED_MAX = 128
 
 
 def _sample_key(char, motion: Motion, dt: float, root_quat, align_floor, loop: bool) -> tuple:
