@@ -9,6 +9,7 @@ from kinodyn.data import library as data
 from kinodyn.errors import FileFormatError, ParameterError
 from kinodyn.response import builtin, from_motions
 from kinodyn.response.classifier import ReactionModel, train
+from kinodyn.response.command import DEFAULT_MODEL
 from kinodyn.response.dataset import Dataset, ball_for, generate
 from kinodyn.response.features import feature_names, features
 from kinodyn.response.pipeline import observe
@@ -118,3 +119,21 @@ def test_training_rejects_bad_input(lib):
         features((), "large")
     with pytest.raises(ParameterError):
         features((None, None, None), "medium")
+
+
+@pytest.mark.parametrize("kind", ["large", "small"])
+def test_shipped_models_are_for_the_builtin_library(kind, lib, small_set):
+    """The default models ship with the package: trained for the built-in library (rolls included) on at
+    least 5,500 throws, the command that reproduces them in their JSON, reloaded without pickle, small."""
+    model = ReactionModel.load(DEFAULT_MODEL / kind, lib)
+    assert model.kind == kind and model.clips == lib.names
+    assert model.info["cases"] >= 5500
+    assert model.info["command"].startswith("kinodyn response train ") and f"--kind {kind}" in model.info["command"]
+    assert 0.0 < model.info["cv_accuracy"] <= model.info["cv_choice_d_within_10pct"] <= 1.0
+    assert (DEFAULT_MODEL / kind / "model.skops").stat().st_size < 8e6
+    ok = small_set.valid()
+    k = model.predict_features(getattr(small_set, kind)[ok])
+    assert np.all((k >= 0) & (k < len(lib)))
+    p = model.probabilities(getattr(small_set, kind)[ok])
+    np.testing.assert_allclose(p.sum(axis=1), 1.0, atol=1e-9)
+    np.testing.assert_array_equal(p.argmax(axis=1), k)
