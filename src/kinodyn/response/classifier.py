@@ -31,7 +31,7 @@ __all__ = ["GRID", "MIN_CASES", "NEAR_OPTIMUM", "ReactionModel", "train"]
 
 FORMAT = "kinodyn.response-model/1"
 #: Cross-validation grid of the SVC (the kernel is polynomial throughout).
-GRID = {"svc__C": [0.3, 1.0, 3.0], "svc__degree": [2, 3], "svc__coef0": [1.0]}
+GRID = {"svc__C": [1.0, 3.0, 10.0, 30.0], "svc__degree": [2, 3], "svc__coef0": [1.0]}
 #: The secondary measure stored with a model: cross-validated choices whose clip's own best error D is
 #: within this factor of the exhaustive optimum (labels are often near-ties).
 NEAR_OPTIMUM = 1.10
