@@ -28,7 +28,8 @@ _PIVOTING = ("turn", "fall_side")
 ALL = library.names()
 BASE = ["idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push", "step_forward_small",
         "step_forward_large", "step_back_small", "step_back_large", "steps_back", "steps_forward",
-        "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side", "flinch_front", "flinch_side_left",
+        "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side", "roll_forward",
+        "roll_backward", "get_up_face_down", "get_up_face_up", "flinch_front", "flinch_side_left",
         "flinch_side_right", "flinch_back"]
 JOINTS = ("Hips", "Spine", "Spine1", "Neck", "Head", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand",
           "RightShoulder", "RightArm", "RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot",
@@ -335,6 +336,53 @@ def test_side_fall_ends_lying_on_its_side(name, sign):
     hips = [humanoid().index(f"{s}UpLeg") for s in ("Left", "Right")]
     low, high = (0, 1) if sign > 0 else (1, 0)
     assert gp[-1, hips[low], 2] < gp[-1, hips[high], 2] - 0.1, "lying on the side it fell toward"
+
+
+@pytest.mark.parametrize("name,sign", [("roll_forward", 1.0), ("roll_backward", -1.0), ("roll_forward_mirror", 1.0),
+                                       ("roll_backward_mirror", -1.0)])
+def test_rolls_turn_over_and_stand_up(name, sign):
+    """A roll turns the pelvis once over about the lateral axis in the direction of travel, carries the body
+    along the floor on its back and shoulders, and ends standing on both feet where it is going."""
+    m = library.load(name)
+    d = _root_displacement(m)
+    assert sign * d[0] > 1.0 and abs(d[1]) < 0.05
+    up = quat.mul_vec(m.local_rot[:, 0], [0.0, 0.0, 1.0])
+    pitch = np.unwrap(np.arctan2(up[:, 0], up[:, 2]))
+    turned = np.rad2deg(pitch[-1] - pitch[0])
+    assert sign * turned == pytest.approx(360.0, abs=10.0), "one full turn, forward for a forward roll"
+    assert up[:, 2].min() < -0.8, "the body goes upside down"
+    gp, _ = _positions(m)
+    sk = humanoid()
+    torso = [sk.index(j) for j in ("Hips", "Spine", "Spine1", "Neck", "LeftArm", "RightArm")]
+    rolling = up[:, 2] < 0.0
+    low = gp[rolling][:, torso, 2].min(axis=1)
+    assert np.median(low) < 0.2 and low.min() < 0.12, "upside down, the back and shoulders roll on the floor"
+    assert m.root_pos[-1, 2] > 0.95, "stands up at the end"
+    c = detect(m)
+    assert c.labels["left"][-5:].all() and c.labels["right"][-5:].all(), "ends standing on both feet"
+
+
+@pytest.mark.parametrize("fall", list(library.GET_UP))
+def test_get_ups_start_where_their_fall_ends_and_stand(fall):
+    """A get-up's first frame is its fall's last one (placed on the floor where the fall ends); it pushes the
+    body up from the floor and ends standing on both feet in the neutral stance."""
+    getup, down = library.load(library.GET_UP[fall]), library.load(fall)
+    assert "getup" in library.info(getup.name).tags and "reaction" not in library.info(getup.name).tags
+    placed = getup.aligned_to(down.ground()[-1], 0)
+    gp_fall, _ = _positions(down)
+    gp_up, _ = _positions(placed)
+    np.testing.assert_allclose(gp_up[0], gp_fall[-1], atol=1e-3, err_msg=fall)
+    sk = humanoid()
+    head = sk.index("Head")
+    assert gp_up[0, head, 2] < 0.3 and gp_up[-1, head, 2] > 1.5, "from lying to standing"
+    assert getup.root_pos[-1, 2] == pytest.approx(library.load("idle").root_pos[0, 2], abs=0.01)
+    c = detect(getup)
+    assert c.labels["left"][-10:].all() and c.labels["right"][-10:].all(), "ends on both feet"
+    g = placed.ground()[-1]
+    for side in ("Left", "Right"):
+        ball = gp_up[-1, sk.index(f"{side}ToeBase")]
+        ref = procedural.stance_state(side, g[0], g[1], g[2]).ball
+        assert np.linalg.norm(ball[:2] - ref[:2]) < 0.03, f"{side} foot in the neutral stance"
 
 
 @pytest.mark.parametrize("name,sign,least", [("step_back_small", -1, 0.12), ("step_back_large", -1, 0.35),

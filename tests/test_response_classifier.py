@@ -9,6 +9,7 @@ from kinodyn.data import library as data
 from kinodyn.errors import FileFormatError, ParameterError
 from kinodyn.response import builtin, from_motions
 from kinodyn.response.classifier import ReactionModel, train
+from kinodyn.response.command import DEFAULT_MODEL
 from kinodyn.response.dataset import Dataset, ball_for, generate
 from kinodyn.response.features import feature_names, features
 from kinodyn.response.pipeline import observe
@@ -53,13 +54,23 @@ def test_features_do_not_depend_on_where_the_character_faces():
                                    err_msg=kind)
 
 
+def test_dataset_keeps_every_clips_best_error(small_set, lib):
+    """per_clip holds each clip's best exhaustive error D: the label is its argmin, the label's error its min."""
+    ok = small_set.valid()
+    assert small_set.per_clip.shape == (len(small_set), len(lib))
+    np.testing.assert_array_equal(small_set.per_clip[ok].argmin(axis=1), small_set.clip[ok])
+    np.testing.assert_array_equal(small_set.per_clip[ok].min(axis=1), small_set.error[ok])
+    assert np.all(np.isinf(small_set.per_clip[~ok]))
+
+
 def test_dataset_is_the_same_for_one_and_two_workers(small_set, tmp_path):
     two = generate(6, seed=3, workers=2, chunk_size=3, show_progress=False)
-    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "ball"):
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "ball"):
         np.testing.assert_array_equal(getattr(small_set, k), getattr(two, k), err_msg=k)
     small_set.save(tmp_path / "d.npz")
     back = Dataset.load(tmp_path / "d.npz")
     np.testing.assert_array_equal(back.large, small_set.large)
+    np.testing.assert_array_equal(back.per_clip, small_set.per_clip)
     assert back.meta == small_set.meta
     with pytest.raises(FileFormatError):
         np.savez(tmp_path / "other.npz", meta=np.array('{"format": "x"}'))
@@ -72,7 +83,7 @@ def test_dataset_is_the_same_from_the_ray_backend(small_set):
         remote = generate(6, seed=3, workers=2, chunk_size=3, backend="ray", show_progress=False)
     finally:
         ray.shutdown()
-    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "ball"):
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "ball"):
         np.testing.assert_array_equal(getattr(small_set, k), getattr(remote, k), err_msg=k)
 
 
@@ -108,3 +119,21 @@ def test_training_rejects_bad_input(lib):
         features((), "large")
     with pytest.raises(ParameterError):
         features((None, None, None), "medium")
+
+
+@pytest.mark.parametrize("kind", ["large", "small"])
+def test_shipped_models_are_for_the_builtin_library(kind, lib, small_set):
+    """The default models ship with the package: trained for the built-in library (rolls included) on at
+    least 5,500 throws, the command that reproduces them in their JSON, reloaded without pickle, small."""
+    model = ReactionModel.load(DEFAULT_MODEL / kind, lib)
+    assert model.kind == kind and model.clips == lib.names
+    assert model.info["cases"] >= 5500
+    assert model.info["command"].startswith("kinodyn response train ") and f"--kind {kind}" in model.info["command"]
+    assert 0.0 < model.info["cv_accuracy"] <= model.info["cv_choice_d_within_10pct"] <= 1.0
+    assert (DEFAULT_MODEL / kind / "model.skops").stat().st_size < 8e6
+    ok = small_set.valid()
+    k = model.predict_features(getattr(small_set, kind)[ok])
+    assert np.all((k >= 0) & (k < len(lib)))
+    p = model.probabilities(getattr(small_set, kind)[ok])
+    np.testing.assert_allclose(p.sum(axis=1), 1.0, atol=1e-9)
+    np.testing.assert_array_equal(p.argmax(axis=1), k)

@@ -10,7 +10,7 @@ from kinodyn.data import library as data
 from kinodyn.errors import MotionError, ParameterError
 from kinodyn.math import quat
 from kinodyn.response import builtin, from_motions
-from kinodyn.response.pipeline import Attacker, Ball, Push, ResponseConfig, eieo, respond
+from kinodyn.response.pipeline import Attacker, Ball, Push, ResponseConfig, eieo, recover, respond
 
 _JUMP_CM = 1.0  # position jump at a join beyond the neighbouring frames' own motion (cm)
 _TURN_DEG = 2.0  # rotation per frame at a join beyond the neighbouring frames' own (degrees)
@@ -130,3 +130,32 @@ def test_bad_input_is_rejected(lib):
         ResponseConfig(horizon_s=0.1)
     with pytest.raises(ParameterError):
         from_motions([])
+
+
+@pytest.mark.parametrize("fall", list(data.GET_UP))
+def test_fall_get_up_idle_is_continuous(fall):
+    """A fall followed by its get-up and then idle (:func:`recover`) moves continuously at both joins: no
+    position jump over 1 cm or turn over 2 degrees per frame beyond the neighbouring frames' own motion."""
+    down = data.load(fall)
+    m = recover(down, fall)
+    getup = data.load(data.GET_UP[fall])
+    assert m.num_frames == down.num_frames + getup.num_frames - 1 + data.load("idle").num_frames - 1
+    jump, turn = _per_frame(m)
+    for a in (down.num_frames, down.num_frames + getup.num_frames - 1):
+        near = np.r_[max(a - 5, 0):a - 1, a:min(a + 4, len(jump))]
+        assert jump[a - 1] <= jump[near].max() + _JUMP_CM, f"{fall} join at {a}: {jump[a - 1]:.2f} cm"
+        assert turn[a - 1] <= turn[near].max() + _TURN_DEG, f"{fall} join at {a}: {turn[a - 1]:.2f} deg"
+    # The get-up played as authored, where the fall ended; then the character stands (idle) at the end.
+    seg = m[down.num_frames:down.num_frames + getup.num_frames - 1]
+    assert quat.angle_between(seg.local_rot[:, 1:], getup.local_rot[1:, 1:]).max() < 1e-9
+    assert m.root_pos[-1, 2] > 0.95
+
+
+def test_recover_rejects_bad_input():
+    with pytest.raises(ParameterError, match="no get-up follows clip 'flinch_front'"):
+        recover(data.load("flinch_front"), "flinch_front")
+    with pytest.raises(ParameterError, match="blend_s"):
+        recover(data.load("fall_forward"), "fall_forward", blend_s=-1.0)
+    fall = data.load("fall_forward")
+    with pytest.raises(MotionError, match="fps"):
+        recover(fall.resample(30.0), "fall_forward")

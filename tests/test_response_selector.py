@@ -35,8 +35,30 @@ def test_predicts_what_the_model_predicts(rng, model):
     np.testing.assert_array_equal(Selector(model).predict_features(x), want)
 
 
+def _svc(model):
+    """The fitted SVC inside the model (inside its calibration when calibrated)."""
+    clf = model.pipeline.steps[1][1]
+    return clf.calibrated_classifiers_[0].estimator if hasattr(clf, "calibrated_classifiers_") else clf
+
+
+def test_the_shipped_models_are_calibrated():
+    for kind in ("large", "small"):
+        clf = ReactionModel.load(DEFAULT_MODEL / kind, builtin()).pipeline.steps[1][1]
+        assert type(clf).__name__ == "CalibratedClassifierCV", kind
+
+
+def test_a_plain_svc_is_chosen_by_its_vote(rng, model):
+    """The vote of an uncalibrated SVC (libsvm's rule) on the same support vectors."""
+    plain = copy.copy(model)
+    plain.pipeline = copy.deepcopy(model.pipeline)
+    plain.pipeline.steps[1] = ("svc", _svc(model))
+    x = _rows(rng, model, 500)
+    want = plain.pipeline.predict(x)
+    np.testing.assert_array_equal(Selector(plain).predict_features(x), want)
+
+
 def test_decision_values_are_libsvm_s(rng, model):
-    svc = copy.deepcopy(model.pipeline.steps[1][1])
+    svc = copy.deepcopy(_svc(model))
     svc.decision_function_shape = "ovo"
     x = _rows(rng, model, 20)
     want = svc.decision_function(model.pipeline.steps[0][1].transform(x))
@@ -65,6 +87,10 @@ def test_rejects_models_it_cannot_compile(model):
         Selector(other)
     other.pipeline = make_pipeline(SVC(kernel="poly"))
     with pytest.raises(ParameterError, match="StandardScaler then SVC"):
+        Selector(other)
+    other.pipeline = copy.deepcopy(model.pipeline)
+    other.pipeline.steps[1][1].ensemble = True
+    with pytest.raises(ParameterError, match="sigmoid-calibrated"):
         Selector(other)
     with pytest.raises(ParameterError, match="features a row"):
         Selector(model).predict_features(np.zeros((1, 3)))

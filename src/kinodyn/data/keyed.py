@@ -22,6 +22,9 @@ The file is meant to be read and edited by people. Its parts:
         * ``{"spline": t0, "keys": [{"t", "ankle" | "ball": [x, y, z], "rot": [rx, ry, rz], "toe": deg,
           "frame": "pelvis"}]}``: move through keys (positions in the world, or with ``"frame":
           "pelvis"`` in the pelvis' floor frame at ``t0``).
+        * ``{"legs": t0, "keys": [{"t", "UpLeg", "Leg", "Foot", "ToeBase": [rx, ry, rz]}]}``: the leg
+          follows keyed joint angles, carried by the pelvis (a leg off the floor: rolls, kicks from the
+          floor); from the foot's state at ``t0`` it eases into the keyed leg by the first key.
     - ``hands``: per side ``{"pole": [x, y, z], "keys": [{"t", "pos": [x, y, z], "w": weight}]}``: wrist
       targets in the world (every clip starts at the origin facing +X), blended over the keyed arm
       with weight ``w``; the elbow points toward ``pole``; targets out of reach are pulled in to
@@ -29,7 +32,8 @@ The file is meant to be read and edited by people. Its parts:
     - ``floor_guard`` (optional, for falls): after solving, wherever a joint or end site would dip
       under the floor the pelvis is lifted by a smoothed amount (planted feet stay where they are).
     - ``start`` (optional): per side ``[dx, dy, dheading]`` moving the starting foot from the neutral
-      stance.
+      stance, or a foot key ``{"ball" | "ankle": [x, y, z], "rot": [rx, ry, rz], "toe": deg}`` in the
+      world (a clip that starts lying down, as a fall ends).
 
 Interpolation is Catmull-Rom everywhere (easing in and out at the first and last keys).
 """
@@ -142,6 +146,30 @@ def _leg_target(side: str, root: _Root, t: float, leg: dict) -> P.FootState:
     return state
 
 
+def _leg_track(side: str, root: _Root, keys: list[dict]):
+    """``fn(times) -> (ball (T, 3), rot (T, 4), toe (T,))``: where the keyed leg angles put the foot."""
+    sk = humanoid()
+    kt = np.array([float(k["t"]) for k in keys])
+    joints = {j: P.euler(np.array([k.get(j, [0.0, 0.0, 0.0]) for k in keys], dtype=np.float64))
+              for j in ("UpLeg", "Leg", "Foot")}
+    toe_keys = np.deg2rad([float(k.get("ToeBase", [0.0, 0.0, 0.0])[1]) for k in keys])
+
+    def fn(times):
+        times = np.atleast_1d(np.asarray(times, dtype=np.float64))
+        q = {j: P.quat_spline(kt, v, times) if len(kt) > 1 else np.repeat(v[:1], len(times), 0)
+             for j, v in joints.items()}
+        p, r = root.sample(times)
+        hip = p + quat.mul_vec(r, sk.offsets[sk.index(f"{side}UpLeg")])
+        thigh = quat.mul(r, q["UpLeg"])
+        knee = hip + quat.mul_vec(thigh, THIGH * _DOWN)
+        shank = quat.mul(thigh, q["Leg"])
+        ankle = knee + quat.mul_vec(shank, SHIN * _DOWN)
+        foot = quat.mul(shank, q["Foot"])
+        return ankle + quat.mul_vec(foot, BALL), foot, P.key_track(kt, toe_keys, times)
+
+    return fn
+
+
 def _foot_point_heights(state: P.FootState) -> list[float]:
     """Heights of the ankle, (virtual) heel, ball and toe tip of a foot state."""
     sk = humanoid()
@@ -170,7 +198,10 @@ def _foot_key_state(side: str, key: dict, frame) -> P.FootState:
 
 def _foot_plan(side: str, actions: list[dict], root: _Root, start_offset=(0.0, 0.0, 0.0)) -> P.FootPlan:
     gx, gy, gh = root.ground(0.0)
-    plan = P.FootPlan(P.stance_state(side, gx, gy, gh, *start_offset))
+    if isinstance(start_offset, dict):
+        plan = P.FootPlan(_foot_key_state(side, start_offset, (0.0, 0.0, 0.0)))
+    else:
+        plan = P.FootPlan(P.stance_state(side, gx, gy, gh, *start_offset))
     for a in actions:
         if "step" in a:
             t0, t1 = (float(x) for x in a["step"])
@@ -194,8 +225,11 @@ def _foot_plan(side: str, actions: list[dict], root: _Root, start_offset=(0.0, 0
             t0 = float(a["spline"])
             frame = root.ground(t0)
             plan.spline(t0, [(float(k["t"]), _foot_key_state(side, k, frame)) for k in a["keys"]])
+        elif "legs" in a:
+            t0 = float(a["legs"])
+            plan.track(t0, [float(k["t"]) for k in a["keys"]], _leg_track(side, root, a["keys"]))
         else:
-            raise ParameterError(f"unknown foot action {sorted(a)} (expected step, roll or spline)")
+            raise ParameterError(f"unknown foot action {sorted(a)} (expected step, roll, spline or legs)")
     return plan
 
 
@@ -233,6 +267,10 @@ def _lowest(motion) -> np.ndarray:
     return np.minimum(gp[..., 2].min(axis=1), ep[..., 2].min(axis=1))
 
 
+def _start(value):
+    return value if isinstance(value, dict) else tuple(value)
+
+
 def build(name: str, spec: dict | None = None) -> P.Assembled:
     """Generate the keyframed clip ``name`` (from ``keyframes.json`` unless ``spec`` is given)."""
     data = keyframe_data()
@@ -244,7 +282,7 @@ def build(name: str, spec: dict | None = None) -> P.Assembled:
     local = {j: (P.quat_spline(kt, q, times) if len(kt) > 1 else np.repeat(q[:1], len(times), 0))
              for j, q in keyed.items()}
     feet = {side: _foot_plan(side, spec.get("feet", {}).get(side, []), root,
-                             tuple(spec.get("start", {}).get(side, (0.0, 0.0, 0.0))))
+                             _start(spec.get("start", {}).get(side, (0.0, 0.0, 0.0))))
             for side in P.SIDES}
     hands = _hand_tracks(spec["hands"], times, root_pos, root_rot, local) if spec.get("hands") else {}
     tracks = P.BodyTracks(times, root_pos, root_rot, local, feet, hands)

@@ -5,7 +5,8 @@ clips, :mod:`kinodyn.data.keyed` for the clips keyframed in ``keyframes.json``) 
 :mod:`kinodyn.data.skeleton`, at 60 frames per second. Clips are built lazily and kept in memory.
 Mirrored variants (``<name>_mirror``, and ``turn_right``, ``stumble_side_right``, ``flinch_side_right``)
 are the left/right mirror images of their source clip (:meth:`kinodyn.motion.Motion.mirrored`) and
-share its skeleton object.
+share its skeleton object. Each fall that ends lying prone or supine has a get-up (:data:`GET_UP`) that
+starts in the fall's last pose and ends standing in the neutral stance.
 
 Quality, checked by ``tests/test_data_library.py`` on every clip: planted feet do not slide (mean foot
 sliding under 2 cm/s by :func:`kinodyn.contacts.sliding`), no joint or end site goes under the floor,
@@ -22,7 +23,7 @@ from kinodyn.data.procedural import Assembled
 from kinodyn.errors import UnknownNameError
 from kinodyn.motion import Motion
 
-__all__ = ["MIRRORED", "ClipInfo", "describe", "ik_error", "info", "load", "names"]
+__all__ = ["GET_UP", "MIRRORED", "ClipInfo", "describe", "ik_error", "info", "load", "names"]
 
 
 @dataclass(frozen=True)
@@ -62,8 +63,13 @@ MIRRORED: dict[str, str] = {
     "flinch_side_right": "flinch_side_left",
 }
 _ASYMMETRIC = ("punch", "kick", "push", "step_forward_small", "step_forward_large", "step_back_small",
-               "step_back_large", "steps_back", "steps_forward", "fall_forward", "fall_backward", "fall_side")
+               "step_back_large", "steps_back", "steps_forward", "fall_forward", "fall_backward", "fall_side",
+               "roll_forward", "roll_backward", "get_up_face_down", "get_up_face_up")
 MIRRORED.update({f"{n}_mirror": n for n in _ASYMMETRIC})
+
+#: The get-up that follows a fall: its first frame is the fall's last (placed where the fall ends).
+GET_UP: dict[str, str] = {"fall_forward": "get_up_face_down", "fall_backward": "get_up_face_up"}
+GET_UP.update({f"{k}_mirror": f"{v}_mirror" for k, v in list(GET_UP.items())})
 
 
 def _mirror_description(text: str) -> str:
@@ -78,7 +84,7 @@ def _mirror_description(text: str) -> str:
 _ORDER = ("idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push",
           "step_forward_small", "step_forward_large", "step_back_small", "step_back_large", "steps_back",
           "steps_forward", "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side",
-          "flinch_front",
+          "roll_forward", "roll_backward", "get_up_face_down", "get_up_face_up", "flinch_front",
           "flinch_side_left", "flinch_side_right", "flinch_back")
 
 

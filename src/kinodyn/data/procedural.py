@@ -280,6 +280,24 @@ class FootPlan:
 
         return self._add(t0, times[-1], fn, states[-1])
 
+    def track(self, t0: float, key_times, fn) -> FootPlan:
+        """Follow ``fn(times) -> (ball (T, 3), rot (T, 4), toe (T,))`` from ``t0`` to the last of
+        ``key_times``, easing from the current state into it by the first key time."""
+        s0 = self.state
+        ta, t1 = max(float(key_times[0]), t0), float(key_times[-1])
+        if t1 <= t0:
+            raise ParameterError(f"a tracked foot segment must end after it starts, got {t0} to {t1}")
+
+        def blended(t):
+            ball, rot, toe = fn(t)
+            w = smoothstep((t - t0) / (ta - t0)) if ta > t0 else np.ones_like(t)
+            ball = (1.0 - w[:, None]) * s0.ball + w[:, None] * ball
+            rot = quat.slerp(np.broadcast_to(s0.rot, rot.shape), rot, w)
+            return ball, rot, (1.0 - w) * s0.toe + w * toe
+
+        b, r, tt = fn(np.array([t1]))
+        return self._add(t0, t1, blended, FootState(b[0], r[0], float(tt[0])))
+
     def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Ball positions ``(F, 3)``, foot rotations ``(F, 4)`` and toe angles ``(F,)`` at ``times``."""
         t = np.asarray(times, dtype=np.float64)

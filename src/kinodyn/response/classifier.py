@@ -3,10 +3,14 @@ the simulated state just after contact.
 
 scikit-learn's ``SVC`` with a polynomial kernel ``K(x, y) = (gamma x.y + coef0)^degree`` on standardized
 features (:mod:`kinodyn.response.features`), the cost ``C``, ``degree`` and ``coef0`` chosen by
-cross-validation over a small grid; Platt-scaled class probabilities. A model is saved as a folder:
-``model.skops`` (the fitted scaler and SVC through skops, never pickle; only the scikit-learn and numpy
-types this module uses are trusted on loading) and ``model.json`` (feature set, clip names, the library
-signature it was trained for, cross-validation scores, training size). Loading checks the library.
+cross-validation over a small grid. Class probabilities are Platt-scaled the way scikit-learn recommends
+since ``SVC(probability=True)`` was deprecated: ``CalibratedClassifierCV(SVC(...), method="sigmoid",
+ensemble=False)`` (one SVC fitted on all cases, its decision values calibrated on cross-validated
+predictions); the predicted clip is the most probable one. The accuracy stored with a model is that of
+this calibrated classifier, cross-validated. A model is saved as a folder: ``model.skops`` (the fitted
+scaler and classifier through skops, never pickle; only the scikit-learn and numpy types this module uses
+are trusted on loading) and ``model.json`` (feature set, clip names, the library signature it was trained
+for, cross-validation scores, training size). Loading checks the library.
 
 Needs the optional ``learn`` extra (scikit-learn, skops).
 """
@@ -23,11 +27,20 @@ from kinodyn.errors import FileFormatError, ParameterError
 from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import FEATURE_SETS, features
 
-__all__ = ["GRID", "ReactionModel", "train"]
+__all__ = ["GRID", "MIN_CASES", "NEAR_OPTIMUM", "ReactionModel", "train"]
 
 FORMAT = "kinodyn.response-model/1"
-#: Cross-validation grid (the kernel is polynomial throughout).
-GRID = {"svc__C": [1.0, 10.0, 100.0], "svc__degree": [2, 3], "svc__coef0": [1.0]}
+#: Cross-validation grid of the SVC (the kernel is polynomial throughout).
+GRID = {"svc__C": [1.0, 3.0, 10.0, 30.0], "svc__degree": [2, 3], "svc__coef0": [1.0]}
+#: The secondary measure stored with a model: cross-validated choices whose clip's own best error D is
+#: within this factor of the exhaustive optimum (labels are often near-ties).
+NEAR_OPTIMUM = 1.10
+#: Folds of the calibration of the chosen SVC's decision values.
+CALIBRATION_FOLDS = 3
+#: Fewest cases of a clip label for the classifier to learn it (each calibration fold of each
+#: cross-validation fold needs some); cases of rarer labels are left out of fitting but still count,
+#: as misses, in the cross-validated accuracy.
+MIN_CASES = 6
 _TRUSTED_PREFIXES = ("sklearn.", "numpy.")
 
 
@@ -36,7 +49,7 @@ class ReactionModel:
     """A trained classifier.
 
     Attributes:
-        pipeline: the fitted scikit-learn pipeline (StandardScaler then SVC).
+        pipeline: the fitted scikit-learn pipeline (StandardScaler then the calibrated SVC).
         kind: feature set, ``"large"`` or ``"small"``.
         clips: names of the library's clips (class ``k`` is clip ``clips[k]``).
         library: signature of the library it was trained for.
@@ -112,11 +125,31 @@ class ReactionModel:
         return model
 
 
+def _calibrated(params: dict, folds: int, seed: int):
+    """The shipped classifier: standardize, then an SVC with ``params`` whose decision values are
+    Platt-scaled on ``folds``-fold cross-validated predictions (one SVC, fitted on all cases)."""
+    from sklearn.calibration import CalibratedClassifierCV
+    from sklearn.model_selection import StratifiedKFold
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVC
+
+    svc = SVC(kernel="poly", gamma="scale", random_state=seed,
+              **{k.removeprefix("svc__"): v for k, v in params.items()})
+    cv = StratifiedKFold(folds, shuffle=True, random_state=seed)
+    return make_pipeline(StandardScaler(), CalibratedClassifierCV(svc, method="sigmoid", cv=cv, ensemble=False))
+
+
 def train(x: np.ndarray, y: np.ndarray, kind: str, library, *, folds: int = 3, seed: int = 0,
-          grid: dict | None = None) -> ReactionModel:
+          grid: dict | None = None, errors: np.ndarray | None = None) -> ReactionModel:
     """Fit the classifier on features ``x (N, n)`` and exhaustive labels ``y (N,)`` (clip indices into
-    ``library``), choosing the grid's parameters by ``folds``-fold cross-validation."""
-    from sklearn.model_selection import GridSearchCV, StratifiedKFold
+    ``library``): the SVC's parameters chosen from the grid by ``folds``-fold cross-validation, then the
+    calibrated classifier with them cross-validated on the same folds and fitted on every case. Labels
+    with fewer than :data:`MIN_CASES` cases are not learnt; ``cv_accuracy`` counts their cases as misses
+    (it is the fraction of all ``N`` cases predicted right). With every clip's best exhaustive error
+    ``errors (N, K)`` (a dataset's ``per_clip``), ``cv_choice_d_within_10pct`` is the fraction of all cases
+    whose cross-validated choice has a best D within :data:`NEAR_OPTIMUM` of the optimum."""
+    from sklearn.model_selection import GridSearchCV, StratifiedKFold, cross_val_predict
     from sklearn.pipeline import make_pipeline
     from sklearn.preprocessing import StandardScaler
     from sklearn.svm import SVC
@@ -129,12 +162,28 @@ def train(x: np.ndarray, y: np.ndarray, kind: str, library, *, folds: int = 3, s
         raise ParameterError("features hold non-finite values; drop the failed cases first")
     if y.min() < 0 or y.max() >= len(library):
         raise ParameterError(f"labels must be clip indices in [0, {len(library)}), got [{y.min()}, {y.max()}]")
-    counts = np.bincount(y)
-    folds = int(max(2, min(folds, counts[counts > 0].min())))
-    pipe = make_pipeline(StandardScaler(), SVC(kernel="poly", gamma="scale", probability=True, random_state=seed))
-    search = GridSearchCV(pipe, grid or GRID, cv=StratifiedKFold(folds, shuffle=True, random_state=seed),
-                          n_jobs=1)
-    search.fit(x, y)
-    info = {"cases": int(len(x)), "cv_accuracy": float(search.best_score_), "folds": folds,
-            "params": {k: (float(v) if isinstance(v, (int, float)) else v) for k, v in search.best_params_.items()}}
-    return ReactionModel(search.best_estimator_, kind, tuple(library.names), library.signature(), info)
+    counts = np.bincount(y, minlength=len(library))
+    learnt = counts[y] >= MIN_CASES
+    if len(np.unique(y[learnt])) < 2:
+        raise ParameterError(f"training needs at least two clip labels with {MIN_CASES} or more cases each, got "
+                             f"counts {counts[counts > 0].tolist()}")
+    xl, yl = x[learnt], y[learnt]
+    folds = int(max(2, min(folds, MIN_CASES // 2)))
+    calib = int(max(2, min(CALIBRATION_FOLDS, MIN_CASES * (folds - 1) // folds)))
+    cv = StratifiedKFold(folds, shuffle=True, random_state=seed)
+    pipe = make_pipeline(StandardScaler(), SVC(kernel="poly", gamma="scale", random_state=seed))
+    search = GridSearchCV(pipe, grid or GRID, cv=cv, n_jobs=1, refit=False)
+    search.fit(xl, yl)
+    params = dict(search.best_params_)
+    pred = cross_val_predict(_calibrated(params, calib, seed), xl, yl, cv=cv, n_jobs=1)
+    model = _calibrated(params, calib, seed).fit(xl, yl)
+    left_out = [library.names[k] for k in np.flatnonzero((counts > 0) & (counts < MIN_CASES))]
+    info = {"cases": int(len(x)), "cv_accuracy": float(np.sum(pred == yl) / len(y)),
+            "svc_cv_accuracy": float(search.best_score_ * len(yl) / len(y)), "folds": folds,
+            "calibration_folds": calib, "labels_left_out": left_out,
+            "params": {k: (float(v) if isinstance(v, (int, float)) else v) for k, v in params.items()}}
+    if errors is not None:
+        e = np.asarray(errors, dtype=np.float64)[learnt]
+        chosen = e[np.arange(len(pred)), pred]
+        info["cv_choice_d_within_10pct"] = float(np.sum(chosen <= NEAR_OPTIMUM * e.min(axis=1)) / len(y))
+    return ReactionModel(model, kind, tuple(library.names), library.signature(), info)

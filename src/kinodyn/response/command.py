@@ -80,7 +80,7 @@ def _train(args) -> int:
                   address=args.address, resume_dir=args.resume or out / "chunks", chunk_size=args.chunk_size)
     ok = ds.valid()
     lib = builtin()
-    model = train(getattr(ds, args.kind)[ok], ds.clip[ok], args.kind, lib)
+    model = train(getattr(ds, args.kind)[ok], ds.clip[ok], args.kind, lib, errors=ds.per_clip[ok])
     model.info.update({"seed": args.seed, "base": args.base, "command": f"kinodyn response train --cases {args.cases} "
                        f"--seed {args.seed} --base {args.base} --kind {args.kind} -o {out.name}"})
     model.save(out)

@@ -21,7 +21,7 @@ import numpy as np
 from kinodyn.errors import FileFormatError, KinodynError
 from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
-from kinodyn.response.pipeline import Ball, label, observe
+from kinodyn.response.pipeline import Ball, label_search, observe
 
 __all__ = ["TARGETS", "Dataset", "ball_for", "generate", "label_chunk"]
 
@@ -51,19 +51,22 @@ def _setup(base: str):
 def label_chunk(tasks: list) -> dict:
     """Simulate and label cases ``[(seed, i, base), ...]`` (one worker job; the library is built once per
     process). Cases whose simulation fails get label -1."""
-    rows = {"large": [], "small": [], "clip": [], "sim_frame": [], "clip_frame": [], "error": [], "ball": []}
+    rows = {"large": [], "small": [], "clip": [], "sim_frame": [], "clip_frame": [], "error": [], "per_clip": [],
+            "ball": []}
     for seed, i, base in tasks:
         motion, lib = _setup(base)
         ball = ball_for(seed, i)
         rows["ball"].append([ball.speed, ball.direction, ball.height, ball.time, TARGETS.index(ball.target)])
         try:
             obs = observe(motion, ball)
-            k, fs, fm, err = label(obs, lib)
+            r = label_search(obs, lib)
+            k, fs, fm, err, per_clip = r.clip, r.sim_frame, r.clip_frame, r.error, r.per_clip
             big, small = features(obs.states, "large"), features(obs.states, "small")
         except KinodynError:
             k, fs, fm, err, big, small = -1, -1, -1, np.inf, np.full(198, np.nan), np.full(20, np.nan)
+            per_clip = np.full(len(lib), np.inf)
         for key, v in (("large", big), ("small", small), ("clip", k), ("sim_frame", fs), ("clip_frame", fm),
-                       ("error", err)):
+                       ("error", err), ("per_clip", per_clip)):
             rows[key].append(v)
     return {k: np.asarray(v) for k, v in rows.items()}
 
@@ -76,6 +79,7 @@ class Dataset:
         large, small: ``(N, 198)`` and ``(N, 20)`` feature vectors.
         clip: ``(N,)`` exhaustive label (clip index; -1 where the case failed).
         sim_frame, clip_frame, error: ``(N,)`` the exhaustive timing and its error D.
+        per_clip: ``(N, K)`` every clip's best error D (the label is its argmin; inf where a case failed).
         ball: ``(N, 5)`` speed, direction, height, time, target index of each case.
         meta: JSON-able description (seed, base, clip names, library signature).
     """
@@ -86,6 +90,7 @@ class Dataset:
     sim_frame: np.ndarray
     clip_frame: np.ndarray
     error: np.ndarray
+    per_clip: np.ndarray
     ball: np.ndarray
     meta: dict
 
@@ -99,7 +104,7 @@ class Dataset:
         with atomic_path(path, suffix=".npz") as tmp:
             np.savez_compressed(tmp, meta=np.array(json.dumps(self.meta)), large=self.large, small=self.small,
                                 clip=self.clip, sim_frame=self.sim_frame, clip_frame=self.clip_frame,
-                                error=self.error, ball=self.ball)
+                                error=self.error, per_clip=self.per_clip, ball=self.ball)
 
     @classmethod
     def load(cls, path) -> "Dataset":
@@ -109,7 +114,7 @@ class Dataset:
                 if meta.get("format") != FORMAT:
                     raise FileFormatError(f"not a kinodyn response dataset (format {meta.get('format')!r})", path)
                 return cls(z["large"], z["small"], z["clip"], z["sim_frame"], z["clip_frame"], z["error"],
-                           z["ball"], meta)
+                           z["per_clip"], z["ball"], meta)
         except (KeyError, ValueError, OSError, json.JSONDecodeError) as e:
             if isinstance(e, FileFormatError):
                 raise
@@ -128,4 +133,4 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, workers: int | No
     meta = {"format": FORMAT, "seed": int(seed), "base": base, "cases": int(cases), "clips": list(lib.names),
             "library": lib.signature(), "targets": list(TARGETS)}
     return Dataset(out["large"], out["small"], out["clip"].astype(np.int64), out["sim_frame"].astype(np.int64),
-                   out["clip_frame"].astype(np.int64), out["error"], out["ball"], meta)
+                   out["clip_frame"].astype(np.int64), out["error"], out["per_clip"], out["ball"], meta)

@@ -2,7 +2,8 @@
 
 The built-in library holds the project's reaction clips (:mod:`kinodyn.data.library`, every clip tagged
 ``reaction`` plus its mirror): steps forward and back (small, large, several), side stumbles, falls
-forward, backward and to the side, and upper-body flinches from the front, the side and the back. Any
+forward, backward and to the side, shoulder rolls forward and backward, and upper-body flinches from the
+front, the side and the back. Any
 folder of BVH clips can replace it (:func:`from_folder`); the clips are resampled to one frame rate.
 
 A :class:`ReactionLibrary` packs the clips (:class:`kinodyn.clips.ClipStore`, starts/stops) and

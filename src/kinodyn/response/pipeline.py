@@ -21,7 +21,7 @@ motion data, simulation, transition and clip. Uses :mod:`kinodyn.physics` throug
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,8 +31,8 @@ from kinodyn.motion import Motion
 from kinodyn.response.align import AlignConfig, fast_align
 from kinodyn.response.search import body_tracks, exhaustive, windows
 
-__all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "ease_weights", "eieo", "label", "looped",
-           "observe", "respond"]
+__all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "ease_weights", "eieo",
+           "label", "label_search", "looped", "observe", "recover", "respond"]
 
 
 @dataclass(frozen=True)
@@ -386,12 +386,23 @@ def observe(base: Motion, impact, config: ResponseConfig = ResponseConfig(),
     return Observation(world, hit, track, c, t0, tuple(states), ahead.trajectory(ahead_hit))
 
 
+def label_search(obs: Observation, library, config: ResponseConfig = ResponseConfig()):
+    """The exhaustive search of an observation's lookahead (:class:`kinodyn.response.search.SearchResult`,
+    ``sim_frame`` counted from the choice frame), with every clip's best error D in ``per_clip``."""
+    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
+    pos, rot = body_tracks(obs.lookahead)
+    sim = windows(pos[skip:], rot[skip:], library.window)
+    if len(sim) == 0:
+        raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
+    r = exhaustive(sim, library)
+    return replace(r, sim_frame=r.sim_frame + skip)
+
+
 def label(obs: Observation, library, config: ResponseConfig = ResponseConfig()):
     """The exhaustive choice for an observation: ``(clip, sim_frame, clip_frame, error)`` with
     ``sim_frame`` counted from the choice frame (the training label of section 7.2)."""
-    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
-    k, fs, fm, err, _ = _choose(obs.lookahead, library, skip, None, obs.states, config)
-    return k, fs, fm, err
+    r = label_search(obs, library, config)
+    return r.clip, r.sim_frame, r.clip_frame, r.error
 
 
 def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseConfig = ResponseConfig(),
@@ -444,3 +455,38 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
     hits = tuple(i for i in world.impacts if i.character == hit.name)
     return Response(out, stages, clip.name, k, fs, fm, float(err), c / fps, impulse, sim[c:], lookahead,
                     states, probs, track[:t1 + 1], hits)
+
+
+def recover(motion: Motion, clip: str, then="idle", blend_s: float = 0.4) -> Motion:
+    """A fallen character gets up: ``motion`` (whose last frame is the last frame of the built-in fall
+    ``clip``, as a :class:`Response` that played its clip to the end) followed by the fall's get-up
+    (:data:`kinodyn.data.library.GET_UP`, starting in the pose the fall ends in) and then ``then`` (a
+    built-in clip name or a Motion, default ``"idle"``), eased in from the get-up's last pose over
+    ``blend_s`` seconds (the same ease-in/ease-out slerp as the transition of 6.2).
+
+    Raises:
+        ParameterError: ``clip`` has no get-up, or ``blend_s`` is negative.
+        MotionError: ``motion`` or ``then`` is not on the built-in skeleton at its frame rate.
+    """
+    from kinodyn.data import library as data
+
+    if clip not in data.GET_UP:
+        raise ParameterError(f"no get-up follows clip {clip!r}; falls with a get-up: {', '.join(data.GET_UP)}")
+    if not blend_s >= 0:
+        raise ParameterError(f"blend_s must be >= 0 seconds, got {blend_s}")
+    getup = data.load(data.GET_UP[clip])
+    nxt = data.load(then) if isinstance(then, str) else then
+    for m, what in ((motion, "motion"), (nxt, "then")):
+        if not m.skeleton.same_topology(getup.skeleton) or abs(m.fps - getup.fps) > 1e-9:
+            raise MotionError(f"{what} must be on the built-in skeleton at {getup.fps:g} fps, got "
+                              f"{m.skeleton.num_joints} joints at {m.fps:g} fps")
+    out = motion.concatenate(getup, align=True, drop_first=True)
+    placed = nxt.aligned_to(out.ground()[-1], 0)
+    n = min(placed.num_frames, int(round(blend_s * getup.fps)) + 1)
+    if n > 1:
+        held = out[-1:].replace(root_pos=np.repeat(out.root_pos[-1:], n, 0),
+                                local_rot=np.repeat(out.local_rot[-1:], n, 0))
+        head = _blend_into(held, placed[:n], ease_weights(n))
+        placed = head.concatenate(placed[n:], align=False, drop_first=False) if placed.num_frames > n else head
+    return out.concatenate(placed, align=False, drop_first=True).replace(name=f"{motion.name} -> {getup.name} -> "
+                                                                                f"{nxt.name}")
