@@ -20,7 +20,7 @@ system:
 $(STAMP): pyproject.toml | $(SYSTEM_STAMP)
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[all,dev]'
+	$(BIN)/python -m pip install -q -e '.[all,ray,dev]'
 	touch $(STAMP)
 
 # The HTML viewer's JavaScript (kinodyn.viz.html): the viewer code in viz-js/src bundled with three.js
