@@ -66,3 +66,16 @@ def test_bench_measures_each_part_at_the_count():
     assert set(r) >= {"physics", "posing", "control", "total", "contacts_per_character", "bare", "compile"}
     assert r["total"] == pytest.approx(r["physics"] + r["posing"] + r["control"])
     assert r["bare"] > 0
+
+
+def test_bench_judges_a_count_by_its_median_build(monkeypatch):
+    """A count is within budget when its median build is: one fast build among slow ones is not enough."""
+    import kinodyn.crowd.bench as bench
+
+    builds = iter([0.010, 0.030, 0.031])  # seconds per frame of three builds of 500 characters
+    monkeypatch.setattr(bench, "measure", lambda n, frames: {"total": 0.001 * n / 100 if n < 500 else next(builds)})
+    r = bench.measure_builds(500, 5, 3)
+    assert r["total"] == 0.030 and r["totals"] == [0.010, 0.030, 0.031]
+    builds = iter([0.010, 0.030, 0.031])
+    points = {100: {"total": 0.001}, 500: {"total": 0.010}}  # one lucky build of 500 within the budget
+    assert bench._search(points, 5, lambda s: None, builds=3) == 400  # 500 judged by its median build
