@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 
+import numpy as np
 import pytest
 
 from kinodyn.data import library
@@ -28,10 +29,12 @@ def test_part_scenes_group_files_by_prefix(tmp_path):
     save(tmp_path / "clips" / "walk.bvh", walk)  # the built-in clips are shown from the library instead
     (tmp_path / "physics" / "broken.bvh").write_text("HIERARCHY\nROOT")
     (tmp_path / "physics" / "body.xml").write_text("<mujoco/>")
+    np.savez(tmp_path / "physics" / "walk_objects.npz", times=np.zeros(3))  # another archive: not a motion
+    (tmp_path / "physics" / "fight_torn.npz").write_bytes(b"PK\x03\x04 torn")  # a broken one: reported
     scenes, skipped = demo.part_scenes(tmp_path)
     assert [(s.name, sorted(s.motions)) for s in scenes] == [
         ("physics: fight", ["fight_attacker", "fight_defender"]), ("physics: walk", ["walk_hit"])]
-    assert len(skipped) == 1 and "broken.bvh" in skipped[0]
+    assert len(skipped) == 2 and "broken.bvh" in skipped[0] and "fight_torn.npz" in skipped[1], skipped
 
 
 @pytest.mark.skipif(not html.bundle_available() or render.available() is not None,

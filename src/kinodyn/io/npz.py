@@ -13,7 +13,7 @@ from kinodyn.io.atomic import atomic_path
 from kinodyn.motion import Motion
 from kinodyn.skeleton import Skeleton
 
-__all__ = ["save_npz", "load_npz", "FORMAT", "NOT_A_MOTION_ARCHIVE"]
+__all__ = ["save_npz", "load_npz", "holds_other_arrays", "FORMAT", "NOT_A_MOTION_ARCHIVE"]
 
 FORMAT = "kinodyn.motion/1"
 NOT_A_MOTION_ARCHIVE = "not a kinodyn motion archive"
@@ -29,6 +29,17 @@ def save_npz(path, motion: Motion) -> None:
         arrays["translations"] = motion.translations
     with atomic_path(path, suffix=".npz") as tmp:
         np.savez_compressed(tmp, **arrays)
+
+
+def holds_other_arrays(path) -> bool:
+    """True when ``path`` is a readable ``.npz`` archive that is not a motion: kinodyn's other archives
+    (a scene's object trajectories, a crowd recording). False for a motion archive and for a file that
+    cannot be read as an archive at all (:func:`load_npz` names what is wrong with that one)."""
+    try:
+        with np.load(Path(path), allow_pickle=False) as z:
+            return not {"meta", "local_rot", "root_pos"} <= set(z.files)
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile, AttributeError):
+        return False
 
 
 def load_npz(path) -> Motion:

@@ -73,16 +73,18 @@ def _impacts(folder: Path, group: str, stems: list[str], skipped: list[str]) -> 
 
 
 def part_scenes(out: Path) -> tuple[list, list[str]]:
-    """Scenes of the motion files earlier demo parts wrote under ``out/<part>/``, and skipped files."""
+    """Scenes of the motion files earlier demo parts wrote under ``out/<part>/``, and the motion files
+    that could not be read (other archives, such as object trajectories, are left out silently)."""
     from kinodyn.io import load
+    from kinodyn.io.npz import holds_other_arrays
     from kinodyn.viz.html import Scene
 
     scenes, skipped = [], []
     for folder in sorted(p for p in Path(out).iterdir() if p.is_dir() and p.name not in ("clips", "viewer")):
         groups: OrderedDict[str, dict] = OrderedDict()
         for f in sorted(folder.iterdir()):
-            if f.suffix.lower() not in _MOTION_EXT:
-                continue
+            if f.suffix.lower() not in _MOTION_EXT or (f.suffix.lower() == ".npz" and holds_other_arrays(f)):
+                continue  # not a motion: an object trajectory or crowd recording is drawn by its own part
             try:
                 m = load(f)
             except KinodynError as e:
