@@ -87,55 +87,53 @@ def walk_run_walk(folder, neutral: str | None = "stand"):
             {"clip": "walk", "start": 5.8, "stop": 9.0, "priority": 1, "key": "walk_again"}]})
 
 
+def _bvh_clip(folder: Path, rel: str, start: float, stop: float, **extra) -> dict:
+    """A clip of the cgspeed BVH file ``rel`` under ``folder`` (its added T-pose frame dropped), at 60 fps."""
+    return {"file": str(Path(folder) / rel), "drop_first": 1, "fps": 60, "start": start, "stop": stop, **extra}
+
+
 def _bvh_stand(folder: Path) -> dict:
     # the neutral pose: subject 90 standing, feet side by side, before the fall of 90_16
-    return {"file": str(folder / "reactions" / "cmu_90_16.bvh"), "drop_first": 1, "fps": 60, "start": 0.3, "stop": 0.5}
+    return _bvh_clip(folder, "reactions/cmu_90_16.bvh", 0.3, 0.5)
 
 
 def _bvh_walk(folder: Path) -> dict:
     # one cycle of CMU 02_01 (left heel strike to left heel strike), after the T-pose frame
-    return {"file": str(folder / "locomotion" / "cmu_02_01.bvh"), "drop_first": 1, "fps": 60, "start": 0.1,
-            "stop": 1.2167, "cyclic": True}
+    return _bvh_clip(folder, "locomotion/cmu_02_01.bvh", 0.1, 1.2167, cyclic=True)
+
+
+def _bvh_script(folder: Path, name: str, clips: dict, actions: list):
+    """A script of BVH clips beside the walk (02_01) and the standing neutral pose (90_16)."""
+    from kinodyn.blend.script import parse_script
+
+    return parse_script({
+        "name": name, "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "neutral": "stand",
+        "clips": {"stand": _bvh_stand(folder), "walk": _bvh_walk(folder), **clips}, "actions": actions})
 
 
 def walk_stumble(folder):
     """A walk (CMU 02_01) into the stumbling walk of CMU 104_13 (from 2 s, the stumble at 3.5 s), then the
     walk again."""
-    from kinodyn.blend.script import parse_script
-
     if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_104_13.bvh", "reactions/cmu_90_16.bvh"):
         return None
-    folder = Path(folder)
-    return parse_script({
-        "name": "cmu_walk_stumble", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "neutral": "stand",
-        "clips": {"stand": _bvh_stand(folder), "walk": _bvh_walk(folder),
-                  "stumble": {"file": str(folder / "reactions" / "cmu_104_13.bvh"), "drop_first": 1, "fps": 60,
-                              "start": 2.0, "stop": 4.5}},
-        "actions": [
-            {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
-            {"clip": "stumble", "start": 2.6, "priority": 2},
-            {"clip": "walk", "start": 4.6, "stop": 7.5, "priority": 1, "key": "walk_again"}]})
+    clips = {"stumble": _bvh_clip(folder, "reactions/cmu_104_13.bvh", 2.0, 4.5)}
+    return _bvh_script(folder, "cmu_walk_stumble", clips, [
+        {"clip": "walk", "start": 0.0, "stop": 3.0, "priority": 1},
+        {"clip": "stumble", "start": 2.6, "priority": 2},
+        {"clip": "walk", "start": 4.6, "stop": 7.5, "priority": 1, "key": "walk_again"}])
 
 
 def walk_fall_getup(folder):
     """A walk (CMU 02_01) into a fall on the face (90_16, from 2.2 s), a get-up from lying face down
     (140_01, from 1.5 s), then the standing neutral pose."""
-    from kinodyn.blend.script import parse_script
-
     if not _have(folder, "locomotion/cmu_02_01.bvh", "reactions/cmu_90_16.bvh", "reactions/cmu_140_01.bvh"):
         return None
-    folder = Path(folder)
-    return parse_script({
-        "name": "cmu_walk_fall_getup", "fps": 60, "ramp_in": 0.5, "ramp_out": 0.5, "neutral": "stand",
-        "clips": {"stand": _bvh_stand(folder), "walk": _bvh_walk(folder),
-                  "fall": {"file": str(folder / "reactions" / "cmu_90_16.bvh"), "drop_first": 1, "fps": 60,
-                           "start": 2.2, "stop": 4.6},
-                  "getup": {"file": str(folder / "reactions" / "cmu_140_01.bvh"), "drop_first": 1, "fps": 60,
-                            "start": 1.5, "stop": 6.9}},
-        "actions": [
-            {"clip": "walk", "start": 0.0, "stop": 2.8, "priority": 1},
-            {"clip": "fall", "start": 2.6, "priority": 2},
-            {"clip": "getup", "start": 4.6, "priority": 3}]})
+    clips = {"fall": _bvh_clip(folder, "reactions/cmu_90_16.bvh", 2.2, 4.6),
+             "getup": _bvh_clip(folder, "reactions/cmu_140_01.bvh", 1.5, 6.9)}
+    return _bvh_script(folder, "cmu_walk_fall_getup", clips, [
+        {"clip": "walk", "start": 0.0, "stop": 2.8, "priority": 1},
+        {"clip": "fall", "start": 2.6, "priority": 2},
+        {"clip": "getup", "start": 4.6, "priority": 3}])
 
 
 def scripts(folder=None) -> dict:

@@ -75,9 +75,10 @@ class ReactionModel:
 
     def __call__(self, states) -> tuple[int, np.ndarray]:
         """The ``select`` of :func:`kinodyn.response.pipeline.respond`: clip index and probabilities for
-        the states at 0.0, 0.1 and 0.2 s after contact."""
-        x = features(states, self.kind)[None]
-        return int(self.predict_features(x)[0]), self.probabilities(x)[0]
+        the states at 0.0, 0.1 and 0.2 s after contact. The clip is the most probable one, which is what
+        the calibrated classifier predicts, so scikit-learn is asked once."""
+        probs = self.probabilities(features(states, self.kind)[None])[0]
+        return int(np.argmax(probs)), probs
 
     def check_library(self, library) -> None:
         """Raise :class:`ParameterError` when ``library`` is not the one the model was trained for."""
