@@ -26,8 +26,8 @@ _SLIDE_MAX_TURN = 0.045
 _PIVOTING = ("turn", "fall_side")
 
 ALL = library.names()
-BASE = ["idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push", "step_forward_small",
-        "step_forward_large", "step_back_small", "step_back_large", "steps_back", "steps_forward",
+BASE = ["idle", "fighting_stance", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push",
+        "step_forward_small", "step_forward_large", "step_back_small", "step_back_large", "steps_back", "steps_forward",
         "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side", "roll_forward",
         "roll_backward", "get_up_face_down", "get_up_face_up", "flinch_front", "flinch_side_left",
         "flinch_side_right", "flinch_back"]
@@ -174,7 +174,7 @@ def test_info_and_describe():
     for n in ALL:
         i = library.info(n)
         assert i.name == n and i.description and isinstance(i.tags, tuple)
-        assert i.cyclic == (n in ("idle", "walk", "run"))
+        assert i.cyclic == (n in ("idle", "fighting_stance", "walk", "run"))
         line = library.describe(n)
         assert "\n" not in line and "frames" in line
     assert library.info("punch_mirror").mirror_of == "punch"

@@ -62,3 +62,24 @@ def test_play_writes_a_page_with_the_impact_and_the_stages(tmp_path):
                                 len(scene["characters"][0]["parents"]))
     f = int(round(imp["t"] * scene["characters"][0]["fps"]))
     assert np.linalg.norm(pos[f] - np.array(imp["point"]), axis=1).min() < 0.25, "the arrow ends on the body"
+
+
+def test_play_with_a_clip_folder_chooses_by_search_when_no_model_is_given(tmp_path, capsys):
+    """The shipped model knows only the built-in clips: ``--library DIR`` without ``--model`` chooses among
+    the folder's clips by exhaustive search and says so, from a BVH base motion of the same skeleton."""
+    from kinodyn.cli import main
+    from kinodyn.data import library as data
+    from kinodyn.io import load, save
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    for name in ("fall_backward", "step_back_small"):
+        save(folder / f"{name}.bvh", data.load(name))
+    save(tmp_path / "walk.bvh", data.load("walk"))
+    out = tmp_path / "r.bvh"
+    assert main(["response", "play", "--base", str(tmp_path / "walk.bvh"), "--library", str(folder),
+                 "--ball", "9,180,1.5,chest", "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "exhaustive search" in captured.err
+    assert load(out).num_frames > data.load("walk").num_frames // 2
+    assert any(f"clip {n} " in captured.out for n in ("fall_backward", "step_back_small"))

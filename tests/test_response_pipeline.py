@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import mocap_files
 from kinodyn.contacts import sliding
 from kinodyn.data import library as data
 from kinodyn.errors import MotionError, ParameterError
@@ -47,7 +48,10 @@ _FRONT_JOIN = pytest.mark.xfail(strict=True, reason=(
 
 @pytest.mark.parametrize("case", [pytest.param("front", marks=_FRONT_JOIN), "back", "side", "push", "punch"])
 def test_output_is_continuous_at_the_three_joins(responses, case):
-    r = responses[case]
+    _assert_continuous_joins(responses[case], case)
+
+
+def _assert_continuous_joins(r, case):
     jump, turn = _per_frame(r.motion)
     for name, (a, _b) in (("impact", r.stages.simulation), ("choice", r.stages.transition),
                           ("clip", r.stages.clip)):
@@ -57,6 +61,43 @@ def test_output_is_continuous_at_the_three_joins(responses, case):
         own_j, own_t = jump[near].max(), turn[near].max()
         assert jump[a - 1] <= own_j + _JUMP_CM, f"{case} {name}: {jump[a - 1]:.2f} cm vs {own_j:.2f}"
         assert turn[a - 1] <= own_t + _TURN_DEG, f"{case} {name}: {turn[a - 1]:.2f} deg vs {own_t:.2f}"
+
+
+@pytest.mark.parametrize("base", ["idle", "fighting_stance"])
+@pytest.mark.parametrize("direction", [np.pi, 0.0, np.pi / 2])
+def test_other_base_motions_respond_continuously(lib, base, direction):
+    """Standing (idle) and in a fighting stance, hit from the front, the back and the side: the three
+    joins are continuous and the feet hold in the clip stage, as for the walk (a side fall pivots its
+    feet as the body tips over them, 3.3 cm/s in the clip itself: there the placed clip may slide no more
+    than the clip does over the same frames)."""
+    r = respond(data.load(base), lib, Ball(direction=direction, target="chest"))
+    _assert_continuous_joins(r, f"{base} at {np.rad2deg(direction):.0f} deg")
+    seg = r.motion[r.stages.clip[0]:r.stages.clip[1]]
+    own = data.load(r.clip)[r.clip_frame + 1:r.clip_frame + 1 + seg.num_frames]
+    assert seg.num_frames <= 10 or sliding(seg).mean < max(_SLIDE, sliding(own).mean + 0.002)
+
+
+_CMU_WALK = mocap_files("locomotion/cmu_02_01.bvh")
+_CMU_REACTIONS = mocap_files("reactions/*.bvh")
+
+
+@pytest.mark.mocap
+@pytest.mark.skipif(not (_CMU_WALK and _CMU_REACTIONS), reason="../shared/mocap reactions or CMU 02_01 not found")
+def test_cmu_skeleton_responds_with_a_folder_of_captured_reactions():
+    """The CMU skeleton walking (02_01) responds with a library of captured reactions read from a folder
+    (``--library DIR``); the converter's added T-pose frames are left out of the clips (a reaction
+    search could otherwise match the T-pose), and the joins are continuous."""
+    import kinodyn
+    from kinodyn.io import has_added_tpose
+    from kinodyn.response.library import from_folder
+
+    clips = from_folder(_CMU_REACTIONS[0].parent, fps=60.0)
+    assert not any(has_added_tpose(clips.clip(k)) for k in range(len(clips)))
+    walk = kinodyn.load(_CMU_WALK[0])[1:].resample(60.0)
+    for direction in (np.pi, 0.0, np.pi / 2):
+        r = respond(walk, clips, Ball(direction=direction, target="chest"))
+        assert r.motion.skeleton.num_joints == walk.skeleton.num_joints
+        _assert_continuous_joins(r, f"CMU at {np.rad2deg(direction):.0f} deg")
 
 
 def test_stages_tile_the_output(responses):

@@ -1,4 +1,4 @@
-"""Procedural cyclic clips: idle, walk and run.
+"""Procedural cyclic clips: idle, a fighting stance, walk and run.
 
 A gait is a periodic pattern of footsteps (left foot down at phase 0, right at phase 0.5) with the
 pelvis moving at constant forward speed, bobbing, swaying, rolling and turning with the legs, the
@@ -22,7 +22,7 @@ from kinodyn.data import procedural as P
 from kinodyn.data.skeleton import SOLE
 from kinodyn.math import quat
 
-__all__ = ["RUN", "WALK", "GaitParams", "gait", "idle"]
+__all__ = ["RUN", "WALK", "GaitParams", "fighting_stance", "gait", "idle"]
 
 _TAU = 2.0 * np.pi
 
@@ -175,6 +175,38 @@ def idle(name: str = "idle", duration: float = 4.0) -> P.Assembled:
                                                 -sign * 12.0 + z], -1))
         local[f"{side}ForeArm"] = P.euler(np.stack([z, -14.0 - 2.0 * np.sin(ph + sign), z], -1))
         local[f"{side}Hand"] = P.euler(np.stack([-sign * 2.0 + z, -6.0 + z, z], -1))
+    return P.assemble(P.BodyTracks(times, root, root_rot, local, feet), name)
+
+
+def fighting_stance(name: str = "fighting_stance", duration: float = 2.0) -> P.Assembled:
+    """A boxer's guard in place: left foot forward, right foot back and turned out, knees bent, the
+    fists up at the chin; a light bounce on the balls of the feet (two per second) and a slow sway of
+    the guard; loops every ``duration`` seconds. Its facing (+X, the pelvis turned 25 degrees toward the
+    rear foot) is the direction the fighter faces."""
+    times = P.frame_times(duration)
+    ph = _TAU * times / duration
+    bounce = np.sin(4.0 * ph)  # four small dips per loop: two per second
+    feet = {"Left": P.FootPlan(P.stance_state("Left", dx=0.17, dy=0.02, dheading_deg=-14.0)),
+            "Right": P.FootPlan(P.stance_state("Right", dx=-0.17, dy=-0.03, dheading_deg=-30.0))}
+    base_h = P.standing_root_height() - 0.05
+    root = np.stack([0.012 * np.sin(ph), 0.015 * np.sin(ph + 0.8), base_h - 0.008 * (1.0 + bounce)], -1)
+    root_rot = P.euler(np.stack([1.0 * np.sin(ph), np.full_like(times, 6.0) + 0.6 * bounce,
+                                 -25.0 + 3.0 * np.sin(ph + 0.4)], -1))
+    z = np.zeros_like(times)
+    sway = np.sin(ph + 1.2)
+    local = {
+        "Spine": P.euler(np.stack([-1.0 * sway, 4.0 + 0.5 * bounce, 8.0 + 1.5 * sway], -1)),
+        "Spine1": P.euler(np.stack([-0.5 * sway, 3.0 + 0.3 * bounce, 6.0 + 1.0 * sway], -1)),
+        "Neck": P.euler(np.stack([z, -4.0 - 0.4 * bounce, 6.0 - 1.5 * sway], -1)),
+        "Head": P.euler(np.stack([0.5 * sway, -6.0 + z, 4.0 - 1.0 * sway], -1)),
+    }
+    for side, sign in (("Left", 1.0), ("Right", -1.0)):
+        lead = 1.0 if side == "Left" else 0.0  # the lead hand sits a little higher and forward
+        local[f"{side}Shoulder"] = P.euler(np.stack([z, z, sign * 6.0 + z], -1))
+        local[f"{side}Arm"] = P.euler(np.stack([sign * (14.0 + 1.5 * bounce), -34.0 - 6.0 * lead + 2.0 * sway,
+                                                -sign * 20.0 + z], -1))
+        local[f"{side}ForeArm"] = P.euler(np.stack([z, -118.0 + 8.0 * lead + 2.0 * np.sin(ph + sign), z], -1))
+        local[f"{side}Hand"] = P.euler(np.stack([z, -10.0 + z, z], -1))
     return P.assemble(P.BodyTracks(times, root, root_rot, local, feet), name)
 
 

@@ -48,6 +48,8 @@ class ClipInfo:
 _PROCEDURAL: dict[str, tuple[object, bool, tuple[str, ...], str]] = {
     "idle": (lambda: gaits.idle("idle"), True, ("idle", "standing"),
              "Standing still: breathing, a slow weight shift, relaxed arms; loops every 4 s."),
+    "fighting_stance": (lambda: gaits.fighting_stance("fighting_stance"), True, ("idle", "stance", "fighting"),
+                        "A boxer's guard in place, left foot forward, fists up, bouncing lightly; loops every 2 s."),
     "walk": (lambda: gaits.gait(gaits.WALK, "walk"), True, ("locomotion", "walk"),
              "Walk cycle at 1.4 m/s, two strides starting at left heel strike; loops."),
     "run": (lambda: gaits.gait(gaits.RUN, "run"), True, ("locomotion", "run"),
@@ -81,7 +83,7 @@ def _mirror_description(text: str) -> str:
     return " ".join(out)
 
 
-_ORDER = ("idle", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push",
+_ORDER = ("idle", "fighting_stance", "walk", "run", "turn_left", "turn_right", "jump", "punch", "kick", "push",
           "step_forward_small", "step_forward_large", "step_back_small", "step_back_large", "steps_back",
           "steps_forward", "stumble_side_left", "stumble_side_right", "fall_forward", "fall_backward", "fall_side",
           "roll_forward", "roll_backward", "get_up_face_down", "get_up_face_up", "flinch_front",

@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,7 @@ def add_arguments(p) -> None:
     t.add_argument("-o", "--output", required=True, help="model folder to write")
     t.add_argument("--cases", type=int, default=5500, help="number of throws (default 5500)")
     t.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
-    t.add_argument("--base", default="walk", help="base motion: walk or idle (default walk)")
+    t.add_argument("--base", default="walk", help="base motion: walk, idle or fighting_stance (default walk)")
     t.add_argument("--kind", choices=["large", "small"], default="large", help="feature set (default large)")
     t.add_argument("--backend", choices=["local", "ray"], default="local")
     t.add_argument("--address", help="Ray cluster address (default: start Ray here)")
@@ -42,7 +43,7 @@ def add_arguments(p) -> None:
     q.add_argument("--base", default="walk", help="base motion: a built-in clip name or a BVH file")
     q.add_argument("--ball", help="SPEED,DIRECTION,HEIGHT,TARGET (m/s, degrees, m, landmark)")
     q.add_argument("--seed", type=int, help="a random ball (as in training) instead of --ball")
-    q.add_argument("--model", help="model folder (default: the shipped model)")
+    q.add_argument("--model", help="model folder (default: the shipped model, or exhaustive search with --library)")
     q.add_argument("--exhaustive", action="store_true", help="choose by exhaustive search, no model")
     q.add_argument("--library", help="folder of BVH reaction clips instead of the built-in library")
     q.add_argument("-o", "--output", required=True, help="motion file to write (.bvh or .npz)")
@@ -156,7 +157,7 @@ def viewer_overlays(r, character: int = 0) -> list:
 
 
 def _play(args) -> int:
-    from kinodyn.io import load, save
+    from kinodyn.io import drop_added_tpose, load, save
     from kinodyn.response.classifier import ReactionModel
     from kinodyn.response.library import builtin, from_folder
     from kinodyn.response.pipeline import respond
@@ -164,13 +165,16 @@ def _play(args) -> int:
     ball = _ball(args)
     lib = builtin() if args.library is None else from_folder(args.library)
     if Path(args.base).exists():
-        base = load(Path(args.base)).resample(lib.fps)
+        base = drop_added_tpose(load(Path(args.base)))[0].resample(lib.fps)
     else:
         from kinodyn.data import library as data
 
         base = data.load(args.base)
     select = None
-    if not args.exhaustive:
+    if not args.exhaustive and args.model is None and args.library is not None:
+        print("kinodyn: note: the shipped model chooses among the built-in clips; the clips of --library are "
+              "chosen by exhaustive search (--model DIR for a model trained on them)", file=sys.stderr)
+    elif not args.exhaustive:
         select = ReactionModel.load(args.model or DEFAULT_MODEL / "large", lib)
     r = respond(base, lib, ball, select)
     save(args.output, r.motion)

@@ -116,9 +116,11 @@ def builtin(config: SearchConfig = SearchConfig()) -> ReactionLibrary:
 
 def from_folder(folder, config: SearchConfig = SearchConfig(), fps: float | None = None) -> ReactionLibrary:
     """A library of every ``*.bvh`` file in ``folder`` (sorted by name), resampled to ``fps`` (default the
-    first file's rate). Clips of the same joint hierarchy but other bone lengths play on the first clip's
-    skeleton. Raises :class:`ParameterError` when the folder holds no BVH file and :class:`MotionError`
-    when a clip has another joint hierarchy."""
+    first file's rate). A T-pose frame added by the converter before the capture (the cgspeed CMU files,
+    :func:`kinodyn.io.drop_added_tpose`) is left out: it is no reaction to match. Clips of the same joint
+    hierarchy but other bone lengths play on the first clip's skeleton. Raises :class:`ParameterError`
+    when the folder holds no BVH file and :class:`MotionError` when a clip has another joint hierarchy."""
+    from kinodyn.io import drop_added_tpose
     from kinodyn.io.bvh import read_bvh
 
     folder = Path(folder)
@@ -127,7 +129,7 @@ def from_folder(folder, config: SearchConfig = SearchConfig(), fps: float | None
     files = sorted(folder.glob("*.bvh"))
     if not files:
         raise ParameterError(f"library folder {str(folder)!r} holds no .bvh file")
-    motions = [read_bvh(f).replace(name=f.stem) for f in files]
+    motions = [drop_added_tpose(read_bvh(f))[0].replace(name=f.stem) for f in files]
     rate = float(fps or motions[0].fps)
     motions = [m if abs(m.fps - rate) < 1e-9 else m.resample(rate) for m in motions]
     first = motions[0]
