@@ -18,10 +18,12 @@ are; when one of them is incompatible, its start waits for the next step (the pa
 ``max_start_delay`` such waits it joins the frontier like a running action whose current element is
 ``DS`` (the neutral pose's phase), so the appendix guarantee covers starts too and no start waits
 forever unless it can never be satisfied by the rule (it then keeps waiting, reported in the log).
+Between cyclic actions an element much longer than the others' is also held for tempo
+(:attr:`SyncConfig.tempo_hold`), so a slow cycle is not warped to a fast one element by element.
 
 The synchronizer is the one mutable object of this module (it is real-time state): it knows nothing of
-time; :mod:`kinodyn.blend.timewarp` gives steps their durations. Steps are integers; element indices
-are integers of the extended sequences (:meth:`PhaseSequence.element`).
+real time (only the elements' own durations, for tempo holds); :mod:`kinodyn.blend.timewarp` gives steps
+their durations. Steps are integers; element indices are integers of the extended sequences.
 """
 
 from __future__ import annotations
