@@ -70,10 +70,9 @@ class SyncConfig:
             holding it conflicts with no other action's next element, so that one element of a slow
             cycle spans several elements of a fast one (a walk's single support over a run's support
             and flight) instead of both being warped to one step, at 0.26x and 2.7x (0: never). A
-            step's nominal duration: the least time an action has left in its element at its own speed
-            (:attr:`Synchronizer.nominal`); the warp splits a held element in proportion. Not with a
-            non-cyclic action in the step: holding an in-place action's double support while a walk
-            swings a foot sets the foot lock against the pose (lock p95 4.2 -> 10.6 cm built-in).
+            step's nominal duration: the least time an action has left in its element (at its speed);
+            the warp splits held elements by it. Not with a non-cyclic action in the step: holding an
+            in-place action's double support while a walk swings a foot sets the lock against the pose.
     """
 
     nk: int = 5
@@ -87,7 +86,8 @@ class SyncConfig:
         if not isinstance(self.max_start_delay, int) or self.max_start_delay < 0:
             raise ParameterError(f"max_start_delay must be an integer >= 0, got {self.max_start_delay!r}")
         if not (self.tempo_hold == 0 or (self.tempo_hold >= 1 and self.tempo_hold < float("inf"))):
-            raise ParameterError(f"tempo_hold must be 0 (off) or a finite ratio >= 1, got {self.tempo_hold!r}")
+            raise ParameterError(f"tempo_hold must be 0 (off) or a finite ratio >= 1, got "
+                                 f"{self.tempo_hold!r}")
 
 
 class Resolution(NamedTuple):
@@ -423,8 +423,8 @@ class Synchronizer:
         A cyclic action joining cyclic ones (``reset`` False) has only ``e0`` laid at ``k``: the steps
         after it are synchronized again one by one (:meth:`_sync_frontier`), so that tempo holds can
         spread a long element of the newcomer over the others' elements, or theirs over its elements.
-        Otherwise (or while an action is being removed: its removal was put off for the planned steps)
-        the newcomer's elements are laid straight.
+        Otherwise (or while an action is being removed: its removal was put off for the planned steps;
+        or one joined at a later step) the newcomer's elements are laid straight.
         """
         nk = self.config.nk
         t.first = k
@@ -432,8 +432,8 @@ class Synchronizer:
         self.tracks.append(t)
         self._note(k, "start", t.key, f"after {t.waited} waits")
         others = [x for x in self.tracks if x is not t]
-        if (reset or self.config.tempo_hold <= 0 or any(x.end is not None or x.leaving for x in others)
-                or not all(x.seq.cyclic for x in self.tracks)):
+        if (reset or self.config.tempo_hold <= 0 or not all(x.seq.cyclic for x in self.tracks)
+                or any(x.end is not None or x.leaving or x.first > k for x in others)):
             t.elems = list(range(first_elem, first_elem + nk))
             if reset:
                 self.frontier = k + nk - 1
