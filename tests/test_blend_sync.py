@@ -265,6 +265,9 @@ def test_removal_behind_a_flight_is_put_off():
 def test_errors_name_the_problem():
     with pytest.raises(ParameterError, match="nk must be"):
         SyncConfig(nk=0)
+    for bad in (0.5, -1.0, float("inf"), float("nan")):
+        with pytest.raises(ParameterError, match="tempo_hold must be"):
+            SyncConfig(tempo_hold=bad)
     with pytest.raises(ParameterError, match="equal lengths"):
         resolve([DS], [RS, LS], [0, 1])
     with pytest.raises(ParameterError, match="combines to ERR"):

@@ -187,3 +187,59 @@ def test_bounded_tangents_keep_the_speed_within_the_rates(m0, m1, sec):
         assert speed.min() >= lo - 1e-9 and speed.max() <= hi + 1e-9
     c = tw.hermite_coefficients(0.0, 1.0, 0.0, sec, b0, b1)
     np.testing.assert_allclose(c[1] + 2 * c[2] * s + 3 * c[3] * s * s, speed, atol=1e-9)
+
+
+def _walk_into_run(tempo_hold: float, steps: int = 14):
+    """A slow walk cycle (0.7 s single supports) joined by a run (0.15 s supports, 0.2 s flights), timed
+    by the planner: ``[(step, {key: (element, action time spent, step duration)}), ...]`` of the steps
+    played, and the synchronizer's nominal durations."""
+    from kinodyn.phases import FLIGHT
+
+    walk = PhaseSequence([DS, LS, DS, RS], [0.1, 0.7, 0.1, 0.7], cyclic=True)
+    run = PhaseSequence([LS, FLIGHT, RS, FLIGHT], [0.15, 0.2, 0.15, 0.2], cyclic=True)
+    sync = Synchronizer(SyncConfig(nk=5, tempo_hold=tempo_hold))
+    planner = tw.WarpPlanner(sync, lambda t: {"walk": 1.0, "run": 1.0})
+    sync.request("walk", walk, 1)
+    planner.start(0.0)
+    sync.request("run", run, 1)
+    played, nominal = [], {}
+    for _ in range(steps):
+        sync.enter_next()
+        planner.enter()
+        k = sync.current
+        d = planner.T[k + 1] - planner.T[k]
+        row = {}
+        for t in sync.tracks:
+            kn = planner.timing[t.key].knots
+            if t.elem(k) is not None and k + 1 in kn:
+                row[t.key] = (t.elem(k), kn[k + 1] - kn[k], d)
+        played.append((k, row))
+        nominal[k] = sync.nominal[k]
+    return played, nominal
+
+
+@pytest.mark.parametrize("tempo_hold", [2.5, 0.0])
+def test_tempo_holds_keep_a_slow_and_a_fast_cycle_within_half_to_twice_their_speed(tempo_hold):
+    """A 0.7 s single support cannot share one step with a 0.15 s one at 0.5x-2x of both speeds (no
+    duration fits both); tempo holds spread the walk's single support over the run's support and flight,
+    and every step then plays both within the bounds. Without them (``tempo_hold=0``) some step cannot."""
+    played, _ = _walk_into_run(tempo_hold)
+    rates = [sp / d for _, row in played if len(row) == 2 for _, sp, d in row.values()]
+    assert len(rates) >= 16
+    inside = all(0.5 - _TOL <= r <= 2.0 + _TOL for r in rates)
+    assert inside == (tempo_hold > 0), (min(rates), max(rates))
+
+
+def test_a_held_element_is_split_by_the_nominal_durations_of_its_steps():
+    """The walk's single support held over several steps spends its time in them in proportion to their
+    nominal durations (one speed through them), not in equal shares."""
+    played, nominal = _walk_into_run(2.5)
+    runs = {}
+    for k, row in played:
+        if "walk" in row and len(row) == 2:
+            e, sp, _ = row["walk"]
+            runs.setdefault(e, []).append(sp / nominal[k])
+    held = [r for e, r in runs.items() if len(r) >= 2]
+    assert held, runs
+    for r in held:
+        np.testing.assert_allclose(r, r[0], rtol=1e-9)

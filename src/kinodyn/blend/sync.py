@@ -18,10 +18,12 @@ are; when one of them is incompatible, its start waits for the next step (the pa
 ``max_start_delay`` such waits it joins the frontier like a running action whose current element is
 ``DS`` (the neutral pose's phase), so the appendix guarantee covers starts too and no start waits
 forever unless it can never be satisfied by the rule (it then keeps waiting, reported in the log).
+Between cyclic actions an element much longer than the others' is also held for tempo
+(:attr:`SyncConfig.tempo_hold`), so a slow cycle is not warped to a fast one element by element.
 
 The synchronizer is the one mutable object of this module (it is real-time state): it knows nothing of
-time; :mod:`kinodyn.blend.timewarp` gives steps their durations. Steps are integers; element indices
-are integers of the extended sequences (:meth:`PhaseSequence.element`).
+real time (only the elements' own durations, for tempo holds); :mod:`kinodyn.blend.timewarp` gives steps
+their durations. Steps are integers; element indices are integers of the extended sequences.
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ from typing import NamedTuple
 
 from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, phase_name
 from kinodyn.errors import ParameterError
+
+#: Steps of nominal durations kept behind the current one (elements held longer see only these).
+NOMINAL_KEPT = 256
 
 __all__ = [
     "Resolution",
@@ -60,17 +65,29 @@ class SyncConfig:
             flight against double support / flight) among those that fit. The paper starts every action
             at its first element; with compatibility alone a run may start with its flight over a
             walk's single support (FLIGHT absorbs), which blends a planted foot with a swinging one.
+        tempo_hold: between cyclic actions, an element whose own duration is over this many times the
+            *nominal* time its steps have lasted so far is held for one more step (enlarged) when
+            holding it conflicts with no other action's next element, so that one element of a slow
+            cycle spans several elements of a fast one (a walk's single support over a run's support
+            and flight) instead of both being warped to one step, at 0.26x and 2.7x (0: never). A
+            step's nominal duration: the least time an action has left in its element (at its speed);
+            the warp splits held elements by it. Not with a non-cyclic action in the step: holding an
+            in-place action's double support while a walk swings a foot sets the lock against the pose.
     """
 
     nk: int = 5
     max_start_delay: int = 4
     phase_match: bool = True
+    tempo_hold: float = 2.5
 
     def __post_init__(self):
         if not isinstance(self.nk, int) or self.nk < 1:
             raise ParameterError(f"nk must be an integer >= 1, got {self.nk!r}")
         if not isinstance(self.max_start_delay, int) or self.max_start_delay < 0:
             raise ParameterError(f"max_start_delay must be an integer >= 0, got {self.max_start_delay!r}")
+        if not (self.tempo_hold == 0 or (self.tempo_hold >= 1 and self.tempo_hold < float("inf"))):
+            raise ParameterError(f"tempo_hold must be 0 (off) or a finite ratio >= 1, got "
+                                 f"{self.tempo_hold!r}")
 
 
 class Resolution(NamedTuple):
@@ -282,7 +299,9 @@ class Synchronizer:
     Usage: :meth:`request` a start (it is tried when the next step is entered, or at once when nothing
     plays), :meth:`enter_next` whenever the animation crosses a step boundary, :meth:`remove` an
     action that has finished fading out. :attr:`phases` maps each synchronized step to its combined
-    phase; :attr:`current` is the step being played; :attr:`frontier` the last synchronized one.
+    phase; :attr:`current` is the step being played; :attr:`frontier` the last synchronized one;
+    :attr:`nominal` maps each step to its nominal duration (seconds of action time, see
+    :attr:`SyncConfig.tempo_hold`).
     """
 
     def __init__(self, config: SyncConfig = SyncConfig(), log: bool = True):
@@ -292,6 +311,7 @@ class Synchronizer:
         self.tracks: list[Track] = []
         self.pending: list[Track] = []
         self.phases: dict[int, int] = {}
+        self.nominal: dict[int, float] = {}
         self.events: list[SyncEvent] = []
         self.resolutions: list[tuple[int, Resolution, tuple]] = []
         self.dirty: int | None = None  # earliest step whose elements changed since the timing was planned
@@ -364,6 +384,7 @@ class Synchronizer:
         del t.elems[max(0, s - t.first):]
         for step in range(s, self.frontier + 1):
             self.phases[step] = without[step]
+            self.nominal[step] = self._nominal_at(step)
         self._note(s, "remove", key, "" if s == s0 else f"put off from step {s0} (a flight hid a conflict)")
         return s
 
@@ -375,6 +396,9 @@ class Synchronizer:
             self.tracks.remove(t)
         for s in [s for s in self.phases if s < k - 1]:
             del self.phases[s]
+        if len(self.nominal) > NOMINAL_KEPT:
+            for s in [s for s in self.nominal if s < k - NOMINAL_KEPT // 2]:
+                del self.nominal[s]
         if not self.tracks:
             self.frontier = max(self.frontier, k - 1)
             if self.pending:  # nothing plays: the first pending action starts at once
@@ -394,20 +418,90 @@ class Synchronizer:
             self.events.append(SyncEvent(step, kind, key, detail))
 
     def _start_at(self, t: Track, k: int, reset: bool = False, first_elem: int = 0) -> None:
-        """Lay elements ``e0 .. e0+nk-1`` at steps ``k .. k+nk-1`` (the frontier sync adds step ``k+nk``)."""
+        """Lay elements ``e0 .. e0+nk-1`` at steps ``k .. k+nk-1`` (the frontier sync adds step ``k+nk``).
+
+        A cyclic action joining cyclic ones (``reset`` False) has only ``e0`` laid at ``k``: the steps
+        after it are synchronized again one by one (:meth:`_sync_frontier`), so that tempo holds can
+        spread a long element of the newcomer over the others' elements, or theirs over its elements.
+        Otherwise (or while an action is being removed: its removal was put off for the planned steps;
+        or one joined at a later step) the newcomer's elements are laid straight.
+        """
         nk = self.config.nk
         t.first = k
-        t.elems = list(range(first_elem, first_elem + nk))
         self._mark(k)
         self.tracks.append(t)
-        if reset:
-            self.frontier = k + nk - 1
-            for j in range(nk):
-                self.phases[k + j] = t.code(first_elem + j)
-        else:
-            for j in range(nk):
-                self.phases[k + j] = self.phases.get(k + j, DS) | t.code(first_elem + j)
         self._note(k, "start", t.key, f"after {t.waited} waits")
+        others = [x for x in self.tracks if x is not t]
+        if (reset or self.config.tempo_hold <= 0 or not all(x.seq.cyclic for x in self.tracks)
+                or any(x.end is not None or x.leaving or x.first > k for x in others)):
+            t.elems = list(range(first_elem, first_elem + nk))
+            if reset:
+                self.frontier = k + nk - 1
+            for j in range(nk):
+                self.phases[k + j] = (DS if reset else self.phases.get(k + j, DS)) | t.code(first_elem + j)
+            for s in range(k, self.frontier + 1):
+                self.nominal[s] = self._nominal_at(s)
+            return
+        t.elems = [first_elem]
+        target = self.frontier
+        for x in others:
+            del x.elems[k - x.first + 1:]
+        for s in [s for s in self.phases if s > k]:
+            del self.phases[s]
+        self.phases[k] = self.phases.get(k, DS) | t.code(first_elem)
+        self.nominal[k] = self._nominal_at(k)
+        self.frontier = k
+        while self.frontier < target:
+            self._sync_frontier()
+
+    def _left_in(self, t: Track, step: int) -> float:
+        """Action time ``t`` has left in its element at the start of ``step`` (nominally)."""
+        j = step - t.first
+        e = t.elems[j]
+        t0, t1 = t.span(e)
+        left = t1 - t0
+        while (j := j - 1) >= 0 and t.elems[j] == e:
+            left -= self.nominal.get(t.first + j, 0.0)
+        return left
+
+    def _nominal_at(self, step: int) -> float:
+        """Nominal duration of ``step``: the least time left to an action there (else the least element)."""
+        best = spans = float("inf")
+        for t in self.tracks:
+            e = t.elem(step)
+            if e is None:
+                continue
+            if (left := self._left_in(t, step)) > 1e-9:
+                best = min(best, left)
+            spans = min(spans, t.span(e)[1] - t.span(e)[0])
+        return max(best if best < float("inf") else (spans if spans < float("inf") else 0.0), 1e-9)
+
+    def _tempo_holds(self, movers, joiners, old_e, nxt) -> set[int]:
+        """Movers that hold their element for tempo (:attr:`SyncConfig.tempo_hold`): every action of
+        the step is cyclic, the element's duration is over ``tempo_hold`` times the nominal time its
+        steps have lasted, and holding it meets no other action's next single support of the other
+        foot. ``nxt`` is updated in place."""
+        ratio = self.config.tempo_hold
+        if ratio <= 0 or len(nxt) < 2 or not all(t.seq.cyclic for t in movers + joiners):
+            return set()
+        f = self.frontier
+        want = []
+        for i, t in enumerate(movers):
+            if t.leaving:
+                continue
+            t0, t1 = t.span(old_e[i])
+            spent = (t1 - t0) - self._left_in(t, f) + self.nominal.get(f, 0.0)
+            if t1 - t0 > ratio * max(spent, 1e-9):
+                want.append(((t1 - t0) / max(spent, 1e-9), i))
+        held: set[int] = set()
+        for _, i in sorted(want, reverse=True):
+            c = movers[i].code(old_e[i])
+            others = [nxt[j] for j in range(len(nxt)) if j != i]
+            if (_join(others) | c) == ERR or len(held) + 1 >= len(nxt):
+                continue
+            held.add(i)
+            nxt[i] = c
+        return held
 
     def _try_starts(self, k: int) -> None:
         nk = self.config.nk
@@ -469,8 +563,9 @@ class Synchronizer:
         old_e += [-1] * len(joiners)
         old = [t.code(e) for t, e in zip(tracks, old_e)]
         nxt = [DS if t.leaving else t.code(e + 1) for t, e in zip(tracks, old_e)]
+        tempo = self._tempo_holds(movers, joiners, old_e, nxt)
         res = resolve(old, nxt, [t.priority for t in tracks])
-        held = set(res.held)
+        held = set(res.held) | tempo
         for i, t in enumerate(movers):
             if t.leaving and i not in held:
                 t.end = f
@@ -496,6 +591,9 @@ class Synchronizer:
             self._note(f, "start", t.key, f"forced after {t.waited} waits")
         self.phases[f] = res.phase
         self.frontier = f
+        self.nominal[f] = self._nominal_at(f)
+        if tempo:
+            self._note(f, "hold", tuple(tracks[i].key for i in sorted(tempo)), "tempo")
         if res.held:
             self.resolutions.append((f, res, tuple(t.key for t in tracks)))
             self._note(f, "hold", tuple(tracks[i].key for i in res.held),

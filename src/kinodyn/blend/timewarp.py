@@ -4,7 +4,9 @@ Ménardais, Multon, Kulpa, Arnaldi, support-phase synchronization. Once the elem
 (:mod:`kinodyn.blend.sync`), step ``s`` lasts ``D(s) = sum_i P_i D_i(s)`` (equation 6): the
 priority-weighted sum of what each action would spend there, with ``P_i`` the action's weight on the
 legs (its priority-resolved blend weight, normalized over the actions in the step). An element held
-over ``m`` steps spends ``1/m`` of its own duration in each. Action ``i`` then plays its element of step
+over several steps spends its own duration in them in proportion to the steps' nominal durations
+(the synchronizer's; ``1/m`` of it in each of ``m`` steps where they are unknown), so it plays at one
+speed through them. Action ``i`` then plays its element of step
 ``s`` during ``[T_s, T_s + D(s))``: the time warp ``t' = H_i(t)`` maps real time to the action's time
 through the knots ``(T_s, h_i(s))``. ``H_i`` is piecewise linear and its slope (the action's speed)
 jumps at every knot, so it is replaced by a cardinal spline through the same knots (figure 10), a
@@ -279,9 +281,11 @@ class WarpPlanner:
         self.keep_history = keep_history
 
     # ------------------------------------------------------------------ planning
-    @staticmethod
-    def _share(tr, step: int, frozen_from: int, knots: dict) -> float:
-        """Action time that track ``tr`` spends in ``step`` (the hold split of an enlarged element)."""
+    def _share(self, tr, step: int, frozen_from: int, knots: dict) -> float:
+        """Action time that track ``tr`` spends in ``step`` (the hold split of an enlarged element): its
+        element's time (what is left of it after the frozen steps) split over the steps it is held in,
+        in proportion to their nominal durations (:attr:`~kinodyn.blend.sync.Synchronizer.nominal`;
+        equal shares where a step has none), so it plays at one speed through them."""
         elems = tr.elems
         j = step - tr.first
         e = elems[j]
@@ -296,9 +300,15 @@ class WarpPlanner:
         a += tr.first
         b += tr.first
         if a < frozen_from:
-            h = knots[frozen_from]
-            return max(t1 - h, 0.0) / (b - frozen_from + 1)
-        return (t1 - t0) / (b - a + 1)
+            rest, a = max(t1 - knots[frozen_from], 0.0), frozen_from
+        else:
+            rest = t1 - t0
+        nom = getattr(self.sync, "nominal", None) or {}
+        ws = [nom.get(s, 0.0) for s in range(a, b + 1)]
+        tot = sum(ws)
+        if not all(w > 0 for w in ws) or not tot > 0:
+            return rest / (b - a + 1)
+        return rest * nom[step] / tot
 
     def plan(self, from_step: int) -> None:
         """Recompute boundaries and knots of steps ``from_step .. frontier`` (earlier ones are frozen)."""
