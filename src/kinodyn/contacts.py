@@ -5,8 +5,8 @@ height threshold above the floor and moving slower than a speed threshold, the t
 Multon et al., "support-phase synchronization", section 4.2. The speed test tells a planted foot from
 one that sweeps close to the floor during a swing. The height is measured from the ground the foot
 stands on near each instant (:func:`support_level`), so tilted, raised and soft capture floors, falls
-and get-ups keep their contacts; the speed limit grows with the body's speed (a stumbling foot rolls
-and slides while it carries the body).
+and get-ups keep their contacts; for a foot that is the body's only support the speed limit grows with
+the body's speed (a stumbling foot slides while it carries the body).
 
 The *sliding* measure used across kinodyn to judge quality is the horizontal speed of the foot's
 lowest point while the foot is in contact: a planted foot should not move.
@@ -48,9 +48,11 @@ class ContactConfig:
         min_frames: contact or flight runs shorter than this many frames are merged into their
             neighbours (removes single-frame flicker).
         relative_speed: a foot point moving slower than this fraction of the root's horizontal speed
-            counts as slow too, up to :data:`RELATIVE_CAP` times ``speed`` (a fast or stumbling walk
-            rolls or slides its planted foot at several tenths of a metre per second, while its
-            swinging foot moves at about twice the body's speed); 0 keeps the limit at ``speed``.
+            counts as slow too, up to :data:`RELATIVE_CAP` times ``speed``, while the other foot is
+            well up (:data:`SWING_HEIGHT`), so this foot is the body's only support, and the body moves
+            slower than a run (:data:`RELATIVE_BODY_MAX`): a stumbling walk slides its supporting foot
+            at several tenths of a metre per second, while a swinging foot moves at about twice the
+            body's speed; 0 keeps the limit at ``speed``.
 
     With an estimated floor, the height test is made against the *support level* each foot stands on
     near each instant (:func:`support_level`): a clip that stands on a raised platform, steps down from
@@ -182,16 +184,21 @@ def detect(motion: Motion, config: ContactConfig = ContactConfig(),
     else:
         floor, slope = float(config.floor), np.zeros(2)
     root = np.asarray(motion.root_pos, dtype=np.float64)
-    limit = np.clip(config.relative_speed * _window_speed(root[:, None, :2], motion.fps)[:, 0], config.speed,
-                    RELATIVE_CAP * config.speed)
+    body = _window_speed(root[:, None, :2], motion.fps)[:, 0]
+    limit = np.where(body < RELATIVE_BODY_MAX,
+                     np.clip(config.relative_speed * body, config.speed, RELATIVE_CAP * config.speed), config.speed)
     heights = {side: pts[side][..., 2] - (floor + pts[side][..., :2] @ slope) for side in SIDES}
     speeds = {side: _window_speed(pts[side], motion.fps) for side in SIDES}
-    slow = {side: speeds[side] < limit[:, None] for side in SIDES}
+    slow = {side: speeds[side] < config.speed for side in SIDES}
     if config.floor is None:
         ground, level = _ground_and_levels({s: heights[s].min(axis=1) for s in SIDES},
                                            {s: slow[s].any(axis=1) for s in SIDES}, motion.fps)
     else:
         ground, level = np.zeros(len(root)), {side: np.zeros(len(root)) for side in SIDES}
+    # the faster limit holds for the body's only support: a foot while the other is well up
+    up = {s: heights[s].min(axis=1) - level[s] > SWING_HEIGHT * config.height for s in SIDES}
+    limit = np.where(np.stack([up[s] for s in SIDES[::-1]]), limit, config.speed)  # (2, F): left, right
+    slow = {s: slow[s] | (speeds[s] < limit[i][:, None]) for i, s in enumerate(SIDES)}
     labels, lowest, lowest_vel = {}, {}, {}
     for side in SIDES:
         p = pts[side]  # (F, P, 3)
@@ -206,7 +213,7 @@ def detect(motion: Motion, config: ContactConfig = ContactConfig(),
         # sliding down from a raised level is not turning on the ground)
         band = np.minimum(level[side], ground + LOW_FRACTION * config.height)
         turning = ((height.min(axis=1) - band < LOW_FRACTION * config.height)
-                   & (speeds[side].min(axis=1) < 1.5 * limit) & ~touching)
+                   & (speeds[side].min(axis=1) < 1.5 * limit[SIDES.index(side)]) & ~touching)
         for a, b in intervals(turning):
             touching[a:b] = (b - a) >= TURN_TIME * motion.fps
         labels[side] = _clean(touching, config.min_frames)
@@ -235,6 +242,11 @@ LOW_FRACTION = 0.4
 TURN_TIME = 0.1
 #: The most the speed limit grows with the body's speed, as a multiple of the speed threshold.
 RELATIVE_CAP = 2.0
+#: Multiple of the height threshold above its level the other foot must be for a foot to get that limit.
+SWING_HEIGHT = 2.0
+#: Body speed (m/s) from which the limit stays at the threshold: a run plants its supporting foot, and its
+#: landing foot sweeps in faster than a walk's.
+RELATIVE_BODY_MAX = 2.5
 
 
 def _window_speed(p, fps: float) -> np.ndarray:
