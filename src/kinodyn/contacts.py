@@ -3,7 +3,10 @@
 A foot touches the ground when one of its points (ankle, toe, toe tip) is both low and slow: below a
 height threshold above the floor and moving slower than a speed threshold, the two parameters of
 Multon et al., "support-phase synchronization", section 4.2. The speed test tells a planted foot from
-one that sweeps close to the floor during a swing.
+one that sweeps close to the floor during a swing. The height is measured from the ground the foot
+stands on near each instant (:func:`support_level`), so tilted, raised and soft capture floors, falls
+and get-ups keep their contacts; for a foot that is the body's only support the speed limit grows with
+the body's speed (a stumbling foot slides while it carries the body).
 
 The *sliding* measure used across kinodyn to judge quality is the horizontal speed of the foot's
 lowest point while the foot is in contact: a planted foot should not move.
@@ -45,8 +48,11 @@ class ContactConfig:
         min_frames: contact or flight runs shorter than this many frames are merged into their
             neighbours (removes single-frame flicker).
         relative_speed: a foot point moving slower than this fraction of the root's horizontal speed
-            counts as slow too (a fast or stumbling walk rolls its planted foot over at several tenths
-            of a metre per second, while its swinging foot moves at about twice the body's speed).
+            counts as slow too, up to :data:`RELATIVE_CAP` times ``speed``, while the other foot is
+            well up (:data:`SWING_HEIGHT`), so this foot is the body's only support, and the body moves
+            slower than a run (:data:`RELATIVE_BODY_MAX`): a stumbling walk slides its supporting foot
+            at several tenths of a metre per second, while a swinging foot moves at about twice the
+            body's speed; 0 keeps the limit at ``speed``.
 
     With an estimated floor, the height test is made against the *support level* each foot stands on
     near each instant (:func:`support_level`): a clip that stands on a raised platform, steps down from
@@ -58,7 +64,7 @@ class ContactConfig:
     speed: float = 0.35
     floor: float | None = None
     min_frames: int = 2
-    relative_speed: float = 0.0
+    relative_speed: float = 0.5
 
     def __post_init__(self):
         if not (np.isfinite(self.height) and self.height > 0):
@@ -178,15 +184,21 @@ def detect(motion: Motion, config: ContactConfig = ContactConfig(),
     else:
         floor, slope = float(config.floor), np.zeros(2)
     root = np.asarray(motion.root_pos, dtype=np.float64)
-    limit = np.maximum(config.speed, config.relative_speed * _window_speed(root[:, None, :2], motion.fps)[:, 0])
+    body = _window_speed(root[:, None, :2], motion.fps)[:, 0]
+    limit = np.where(body < RELATIVE_BODY_MAX,
+                     np.clip(config.relative_speed * body, config.speed, RELATIVE_CAP * config.speed), config.speed)
     heights = {side: pts[side][..., 2] - (floor + pts[side][..., :2] @ slope) for side in SIDES}
     speeds = {side: _window_speed(pts[side], motion.fps) for side in SIDES}
-    slow = {side: speeds[side] < limit[:, None] for side in SIDES}
+    slow = {side: speeds[side] < config.speed for side in SIDES}
     if config.floor is None:
-        level = support_level({s: heights[s].min(axis=1) for s in SIDES}, {s: slow[s].any(axis=1) for s in SIDES},
-                              motion.fps)
+        ground, level = _ground_and_levels({s: heights[s].min(axis=1) for s in SIDES},
+                                           {s: slow[s].any(axis=1) for s in SIDES}, motion.fps)
     else:
-        level = {side: np.zeros(len(root)) for side in SIDES}
+        ground, level = np.zeros(len(root)), {side: np.zeros(len(root)) for side in SIDES}
+    # the faster limit holds for the body's only support: a foot while the other is well up
+    up = {s: heights[s].min(axis=1) - level[s] > SWING_HEIGHT * config.height for s in SIDES}
+    limit = np.where(np.stack([up[s] for s in SIDES[::-1]]), limit, config.speed)  # (2, F): left, right
+    slow = {s: slow[s] | (speeds[s] < limit[i][:, None]) for i, s in enumerate(SIDES)}
     labels, lowest, lowest_vel = {}, {}, {}
     for side in SIDES:
         p = pts[side]  # (F, P, 3)
@@ -197,7 +209,11 @@ def detect(motion: Motion, config: ContactConfig = ContactConfig(),
         # the speed threshold; a landing foot passes that band in a frame or two)
         above = height.min(axis=1) - level[side]
         touching = (above < config.height) & slow[side].any(axis=1)
-        turning = (above < LOW_FRACTION * config.height) & (speeds[side].min(axis=1) < 1.5 * limit) & ~touching
+        # (the band starts at the foot's level but at most LOW_FRACTION * height above the ground: a foot
+        # sliding down from a raised level is not turning on the ground)
+        band = np.minimum(level[side], ground + LOW_FRACTION * config.height)
+        turning = ((height.min(axis=1) - band < LOW_FRACTION * config.height)
+                   & (speeds[side].min(axis=1) < 1.5 * limit[SIDES.index(side)]) & ~touching)
         for a, b in intervals(turning):
             touching[a:b] = (b - a) >= TURN_TIME * motion.fps
         labels[side] = _clean(touching, config.min_frames)
@@ -211,9 +227,12 @@ def detect(motion: Motion, config: ContactConfig = ContactConfig(),
 #: Seconds of a foot point's displacement its detection speed is measured over (steadier than one frame
 #: at high capture rates, where marker jitter alone reads as tenths of a metre per second).
 SPEED_SPAN = 1.0 / 30.0
-#: Half-width (s) of the window a foot's support level is taken over, the low percentile of its slow
-#: lowest heights there, and the most (m) a foot's level may stand above both feet's.
+#: Half-width (s) of the window both feet's ground is taken over (its low percentile of their slow lowest
+#: heights), the half-width of the window of a foot's own level (the median of its slow lowest heights:
+#: short, since a soft floor gives under a crouch within a few tenths of a second), and the most (m) a
+#: foot's level may stand above both feet's.
 LEVEL_WINDOW = 1.0
+OWN_WINDOW = 0.3
 LEVEL_PERCENTILE = 10.0
 LEVEL_OWN_PERCENTILE = 50.0
 LEVEL_RAISE = 0.06
@@ -221,6 +240,13 @@ LEVEL_RAISE = 0.06
 LOW_FRACTION = 0.4
 #: Seconds a foot must stay in that band to count as turning on the ground.
 TURN_TIME = 0.1
+#: The most the speed limit grows with the body's speed, as a multiple of the speed threshold.
+RELATIVE_CAP = 2.0
+#: Multiple of the height threshold above its level the other foot must be for a foot to get that limit.
+SWING_HEIGHT = 2.0
+#: Body speed (m/s) from which the limit stays at the threshold: a run plants its supporting foot, and its
+#: landing foot sweeps in faster than a walk's.
+RELATIVE_BODY_MAX = 2.5
 
 
 def _window_speed(p, fps: float) -> np.ndarray:
@@ -233,11 +259,11 @@ def _window_speed(p, fps: float) -> np.ndarray:
     return np.linalg.norm(p[b] - p[a], axis=-1) / span[:, None]
 
 
-def _low_track(h, ok, fps: float, q: float = LEVEL_PERCENTILE) -> np.ndarray:
-    """``(F,)`` the ``q`` percentile of ``h[ok]`` within :data:`LEVEL_WINDOW` of each frame, evaluated
+def _low_track(h, ok, fps: float, q: float = LEVEL_PERCENTILE, window: float = LEVEL_WINDOW) -> np.ndarray:
+    """``(F,)`` the ``q`` percentile of ``h[ok]`` within ``window`` seconds of each frame, evaluated
     every 0.1 s and interpolated (NaN everywhere when too few frames are ``ok``)."""
     n = len(h)
-    half = max(1, int(round(LEVEL_WINDOW * fps)))
+    half = max(1, int(round(window * fps)))
     need = max(3, int(round(0.1 * fps)))
     centers = np.arange(0, n, max(1, int(round(0.1 * fps))))
     if n and centers[-1] != n - 1:
@@ -263,21 +289,26 @@ def support_level(low: dict, slow: dict, fps: float) -> dict:
         fps: frame rate.
 
     Returns:
-        ``{side: (F,)}``: the median of the foot's slow lowest heights within a second (a foot standing
-        flat rests its lowest point higher than one rolling over its toes), between both feet's
-        low percentile (the ground nearby) and :data:`LEVEL_RAISE` above it, and never below 0 (the
-        fitted floor stays the lowest ground); where a foot is never slow nearby, both feet's level,
-        else 0.
+        ``{side: (F,)}``: the median of the foot's slow lowest heights within :data:`OWN_WINDOW` (a foot
+        standing flat rests its lowest point higher than one rolling over its toes), between both
+        feet's low percentile within :data:`LEVEL_WINDOW` (the ground nearby) and :data:`LEVEL_RAISE`
+        above it, and never below 0 (the fitted floor stays the lowest ground); where a foot is never
+        slow nearby, both feet's level, else 0.
     """
+    return _ground_and_levels(low, slow, fps)[1]
+
+
+def _ground_and_levels(low: dict, slow: dict, fps: float) -> tuple[np.ndarray, dict]:
+    """Both feet's ground ``(F,)`` (never below 0) and each foot's level (:func:`support_level`)."""
     both = _low_track(np.concatenate([low[s] for s in SIDES]).reshape(2, -1).min(axis=0),
                       np.logical_or(*[slow[s] for s in SIDES]), fps)
     both = np.where(np.isfinite(both), both, 0.0)
     out = {}
     for s in SIDES:
-        own = _low_track(low[s], slow[s], fps, LEVEL_OWN_PERCENTILE)
+        own = _low_track(low[s], slow[s], fps, LEVEL_OWN_PERCENTILE, OWN_WINDOW)
         own = np.where(np.isfinite(own), own, both)
         out[s] = np.maximum(np.clip(own, both, both + LEVEL_RAISE), 0.0)
-    return out
+    return np.maximum(both, 0.0), out
 
 
 #: A floor plane is fitted only when the planted points spread over at least this many metres.
