@@ -159,3 +159,20 @@ def test_recover_rejects_bad_input():
     fall = data.load("fall_forward")
     with pytest.raises(MotionError, match="fps"):
         recover(fall.resample(30.0), "fall_forward")
+
+
+def test_a_model_responds_with_scikit_learns_choice(lib):
+    """With a trained model as ``select`` the pipeline chooses through the compiled selector, and its clip
+    and class probabilities are scikit-learn's for the same states."""
+    pytest.importorskip("sklearn")
+    from kinodyn.response.classifier import ReactionModel
+    from kinodyn.response.command import DEFAULT_MODEL
+    from kinodyn.response.dataset import ball_for
+    from kinodyn.response.features import features
+
+    model = ReactionModel.load(DEFAULT_MODEL / "large", lib)
+    r = respond(data.load("walk"), lib, ball_for(1000, 1), model)
+    assert model.selector() is not None
+    x = features(r.features, "large")[None]
+    assert r.clip_index == model.predict_features(x)[0] and r.clip == lib.names[r.clip_index]
+    np.testing.assert_allclose(r.probabilities, model.probabilities(x)[0], rtol=1e-9, atol=1e-12)

@@ -119,3 +119,22 @@ def test_the_float32_pass_settles_most_choices_and_defers_at_a_boundary(rng, mod
     before = dict(sel.counts)
     assert set(sel.predict_features(pair)) <= set(want_pair)
     assert sel.counts["float64"] == before["float64"] + 2, "both rows at the boundary deferred"
+
+
+def test_probabilities_are_scikit_learns(rng, model):
+    """The compiled probabilities (from the float64 decision values) are ``predict_proba``'s, to rounding,
+    over every library clip; as the ``select`` of the pipeline the clip is the model's and the most probable."""
+    x = _rows(rng, model, 300)
+    sel = Selector(model)
+    np.testing.assert_allclose(sel.probabilities(x), model.probabilities(x), rtol=1e-9, atol=1e-12)
+    from kinodyn.data import library as data
+    from kinodyn.response.dataset import ball_for
+    from kinodyn.response.pipeline import observe
+
+    obs = observe(data.load("walk"), ball_for(1000, 5))
+    k, probs = sel(obs.states)
+    from kinodyn.response.features import features
+
+    want = model.probabilities(features(obs.states, model.kind)[None])[0]
+    assert k == int(np.argmax(want)) == sel.choose(obs.states)
+    np.testing.assert_allclose(probs, want, rtol=1e-9, atol=1e-12)

@@ -9,11 +9,19 @@ A plain ``SVC`` votes one against one, as libsvm does. The shipped models wrap t
 ``CalibratedClassifierCV(method="sigmoid", ensemble=False)``: scikit-learn turns the pairwise values into
 one value per class (votes plus a bounded sum of confidences, ``_ovr_decision_function``), maps each
 through its fitted sigmoid ``1 / (1 + exp(a f + b))`` and picks the most probable class (normalizing
-does not change which). :class:`Selector` reads those fitted arrays once and evaluates the choice in one
-compiled kernel, so one choice costs the kernel sums and nothing else (scikit-learn's per-call checks
-cost more than the arithmetic for a single sample). It predicts exactly what the model's
-``predict_features`` does (tested); class probabilities, wanted only to explain a choice, stay with the
-model.
+does not change which). :class:`Selector` reads those fitted arrays once and evaluates the choice compiled, so one choice costs
+the kernel sums and nothing else (scikit-learn's per-call checks cost more than the arithmetic for a
+single sample). It predicts exactly what the model's ``predict_features`` does (tested).
+
+The choice (:meth:`Selector.choose`) streams the support vectors in float32 first: half the memory of
+float64, which is what a choice costs. Each float32 dot product carries a proven error bound (Higham's
+for a sum in any order), carried through the kernel power, the pairwise sums, the votes and the sigmoids
+into an interval per class probability; when the best class's lower end clears every other upper end the
+float64 arithmetic must choose it too, and otherwise (a few choices in a hundred, a decision or the
+winning margin inside the bound) the float64 decision values decide. So the choice is always the
+float64 one. The class probabilities (:meth:`Selector.probabilities`, and with the choice as the
+``select`` of :func:`kinodyn.response.pipeline.respond`, :meth:`Selector.__call__`) come from the float64
+values, as scikit-learn's ``predict_proba`` computes them.
 """
 
 from __future__ import annotations
@@ -236,6 +244,33 @@ def _choose32(x, mean, scale, sv32, sv_norm, gamma, coef0, degree, starts, coef,
     return _certain(sums, errs, intercept, a, b)
 
 
+@numba.njit(cache=True)
+def _probabilities(dec, n_class, a, b, out):  # pragma: no cover - compiled
+    """scikit-learn's ``predict_proba`` of a sigmoid-calibrated SVC from the pairwise ``dec`` into
+    ``out (n_class,)``: the one-against-rest values through their sigmoids, normalized to sum 1
+    (uniform where every sigmoid is 0); values within 1e-5 above 1 clipped to 1, as scikit-learn does."""
+    votes = np.zeros(n_class)
+    conf = np.zeros(n_class)
+    p = 0
+    for i in range(n_class):
+        for j in range(i + 1, n_class):
+            conf[i] += dec[p]
+            conf[j] -= dec[p]
+            if dec[p] < 0.0:
+                votes[j] += 1.0
+            else:
+                votes[i] += 1.0
+            p += 1
+    for i in range(n_class):
+        f = votes[i] + conf[i] / (3.0 * (abs(conf[i]) + 1.0))
+        out[i] = 1.0 / (1.0 + np.exp(a[i] * f + b[i]))
+    total = out.sum()
+    for i in range(n_class):
+        out[i] = out[i] / total if total != 0.0 else 1.0 / n_class
+        if 1.0 < out[i] <= 1.0 + 1e-5:
+            out[i] = 1.0
+
+
 def _svc_parts(pipeline):
     """``(scaler, svc, sigmoids)`` of a model's pipeline; ``sigmoids`` is ``(a, b)`` per class of a
     calibrated SVC, None for a plain one."""
@@ -288,6 +323,7 @@ class Selector:
         self._intercept = np.ascontiguousarray(svc.intercept_, dtype=np.float64)
         self._gamma, self._coef0, self._degree = float(svc._gamma), float(svc.coef0), int(svc.degree)
         self._classes = np.asarray(svc.classes_).astype(np.int64)
+        self._n_clips = len(model.clips)
         self._dec = np.empty(len(self._intercept))
         # The first pass: float32 support vectors (half the memory to stream) and their float64 norms.
         self._sv32 = self._sv.astype(np.float32)
@@ -334,3 +370,35 @@ class Selector:
     def choose(self, states) -> int:
         """Clip index for the states at 0.0, 0.1 and 0.2 s after contact."""
         return int(self._classes[self._one(features(states, self.kind))])
+
+    def probabilities(self, x: np.ndarray) -> np.ndarray:
+        """``(N, K)`` class probabilities over every library clip for feature rows ``x (N, n)`` (the model's
+        ``probabilities``, to rounding; 0 for clips never seen in training).
+
+        Raises:
+            ParameterError: the model is a plain SVC, which has no probabilities.
+        """
+        if self._sigmoids is None:
+            raise ParameterError("a plain SVC has no class probabilities; calibrate it (train does)")
+        x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+        out = np.zeros((len(x), self._n_clips))
+        p = np.empty(len(self._classes))
+        for n, row in enumerate(x):
+            self._exact(row)
+            _probabilities(self._dec, len(self._classes), *self._sigmoids, p)
+            out[n, self._classes] = p
+        return out
+
+    def __call__(self, states) -> tuple[int, np.ndarray | None]:
+        """The ``select`` of :func:`kinodyn.response.pipeline.respond`: clip index and class probabilities
+        (None for a plain SVC) for the states at 0.0, 0.1 and 0.2 s after contact, from one evaluation of
+        the float64 decision values (the probabilities need them; the choice is theirs)."""
+        x = features(states, self.kind)
+        if self._sigmoids is None:
+            return int(self._classes[self._exact(x)]), None
+        k = self._exact(x)
+        p = np.empty(len(self._classes))
+        _probabilities(self._dec, len(self._classes), *self._sigmoids, p)
+        probs = np.zeros(self._n_clips)
+        probs[self._classes] = p
+        return int(self._classes[k]), probs
