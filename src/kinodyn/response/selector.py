@@ -238,8 +238,11 @@ def _choose32(x, mean, scale, sv32, sv_norm, gamma, coef0, degree, starts, coef,
     ``work`` = (dots, kv, err (S,), sums, errs (K, K - 1)), scratch."""
     dots, kv, err, sums, errs = work
     z = (x - mean) / scale
+    z_norm = np.sqrt(np.sum(z * z))
+    if not z_norm < 1e30:  # beyond float32's range (or not finite): no bound to carry
+        return -1
     _dots32(sv32, z.astype(np.float32), dots)
-    _bounded_kernel(dots, z.shape[0], np.sqrt(np.sum(z * z)), sv_norm, gamma, coef0, degree, kv, err)
+    _bounded_kernel(dots, z.shape[0], z_norm, sv_norm, gamma, coef0, degree, kv, err)
     _class_sums(kv, err, starts, coef, sums, errs)
     return _certain(sums, errs, intercept, a, b)
 
