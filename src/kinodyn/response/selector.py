@@ -144,8 +144,10 @@ def _bounded_kernel(dots, n_feat, z_norm, sv_norm, gamma, coef0, degree, kv, err
     A dot product of ``n`` float32 terms (each factor rounded to float32, then multiplied and summed in
     any order, as vectorizing does) is within ``gamma_{n+2} sum_i |sv_i z_i| <= gamma_{n+2} |sv| |z|`` of
     the exact one (Higham, Accuracy and Stability of Numerical Algorithms, 3.1; ``gamma_m = m u /
-    (1 - m u)``, ``u`` the float32 unit roundoff), ``sv_norm (S,)`` and ``z_norm`` the norms. That bounds
-    each kernel value: ``|t^d - s^d| <= d max(|t|, |s|)^(d-1) |t - s|``."""
+    (1 - m u)``, ``u`` the float32 unit roundoff), ``sv_norm (S,)`` and ``z_norm`` the norms; ``gamma_{n+3}``
+    is used, and the norms taken 1e-6 larger, for the float64 rounding of the bound itself. That bounds
+    each kernel value: ``|t^d - s^d| <= d max(|t|, |s|)^(d-1) |t - s|``, with a relative 1e-12 for the
+    float64 arithmetic of ``t`` and its power."""
     gam = (n_feat + 3.0) * _U32 / (1.0 - (n_feat + 3.0) * _U32)
     for k in range(dots.shape[0]):
         t = gamma * dots[k] + coef0
