@@ -137,3 +137,36 @@ def test_shipped_models_are_for_the_builtin_library(kind, lib, small_set):
     p = model.probabilities(getattr(small_set, kind)[ok])
     np.testing.assert_allclose(p.sum(axis=1), 1.0, atol=1e-9)
     np.testing.assert_array_equal(p.argmax(axis=1), k)
+
+
+def test_a_model_chooses_through_its_compiled_selector(lib, monkeypatch):
+    """``model(states)`` (the pipeline's ``select``) goes through the compiled selector, with scikit-learn's
+    choice and probabilities; a pipeline the selector cannot compile falls back to scikit-learn."""
+    import copy
+
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVC
+
+    from kinodyn.response.selector import Selector
+
+    calls = []
+    compiled = Selector.__call__
+    monkeypatch.setattr(Selector, "__call__", lambda self, states: calls.append(1) or compiled(self, states))
+    model = ReactionModel.load(DEFAULT_MODEL / "large", lib)
+    assert model.selector() is not None and model.selector() is model.selector(), "built once"
+    walk = data.load("walk")
+    for i in (2, 6):
+        obs = observe(walk, ball_for(1000, i))
+        want = model.probabilities(features(obs.states, "large")[None])[0]
+        k, probs = model(obs.states)
+        assert k == int(np.argmax(want)) == model.predict_features(features(obs.states, "large")[None])[0]
+        np.testing.assert_allclose(probs, want, rtol=1e-9, atol=1e-12)
+    assert len(calls) == 2, "chosen by the compiled selector"
+    rng = np.random.default_rng(4)
+    x, y = _blobs(rng, dim=198)
+    other = copy.copy(model)
+    other.pipeline = make_pipeline(StandardScaler(), SVC(kernel="rbf", probability=True, random_state=0)).fit(x, y)
+    assert other.selector() is None
+    k, probs = other(obs.states)
+    assert k == int(np.argmax(probs)) and probs.shape == (len(lib),)

@@ -40,3 +40,15 @@ def test_features_are_the_plain_formulation_bit_for_bit(case):
     obs = observe(data.load("walk"), ball_for(1000, case))
     for kind in ("large", "small"):
         np.testing.assert_array_equal(features(obs.states, kind), _plain(obs.states, kind), err_msg=kind)
+
+
+def test_features_do_not_depend_on_the_quaternions_sign():
+    """``q`` and ``-q`` are one rotation: states with every orientation negated give the same vectors
+    (the orientations enter as the representative with ``w >= 0``), bit for bit, as the plain formulation."""
+    import dataclasses
+
+    obs = observe(data.load("walk"), ball_for(1000, 0))
+    flipped = tuple(dataclasses.replace(s, quat=-s.quat) for s in obs.states)
+    for kind in ("large", "small"):
+        np.testing.assert_array_equal(features(flipped, kind), features(obs.states, kind), err_msg=kind)
+        np.testing.assert_array_equal(features(flipped, kind), _plain(flipped, kind), err_msg=kind)

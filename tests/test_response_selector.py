@@ -94,3 +94,47 @@ def test_rejects_models_it_cannot_compile(model):
         Selector(other)
     with pytest.raises(ParameterError, match="features a row"):
         Selector(model).predict_features(np.zeros((1, 3)))
+
+
+def test_the_float32_pass_settles_most_choices_and_defers_at_a_boundary(rng, model):
+    """Most choices are settled by the float32 pass (its error bound clear of every decision); on a
+    class boundary (two rows a few ulps apart that the model gives different clips) it must defer both to
+    the float64 values (which there agree with libsvm's only to rounding, so either clip may come)."""
+    x = _rows(rng, model, 400)
+    want = model.predict_features(x)
+    sel = Selector(model)
+    np.testing.assert_array_equal(sel.predict_features(x), want)
+    assert sel.counts["float32"] >= 0.9 * len(x), sel.counts
+    i, j = 0, int(np.flatnonzero(want != want[0])[0])
+    lo, hi = x[i], x[j]
+    for _ in range(80):  # bisect the segment to the boundary between the two clips
+        mid = 0.5 * (lo + hi)
+        if model.predict_features(mid[None])[0] == want[i]:
+            lo = mid
+        else:
+            hi = mid
+    pair = np.stack([lo, hi])
+    want_pair = model.predict_features(pair)
+    assert want_pair[0] != want_pair[1]
+    before = dict(sel.counts)
+    assert set(sel.predict_features(pair)) <= set(want_pair)
+    assert sel.counts["float64"] == before["float64"] + 2, "both rows at the boundary deferred"
+
+
+def test_probabilities_are_scikit_learns(rng, model):
+    """The compiled probabilities (from the float64 decision values) are ``predict_proba``'s, to rounding,
+    over every library clip; as the ``select`` of the pipeline the clip is the model's and the most probable."""
+    x = _rows(rng, model, 300)
+    sel = Selector(model)
+    np.testing.assert_allclose(sel.probabilities(x), model.probabilities(x), rtol=1e-9, atol=1e-12)
+    from kinodyn.data import library as data
+    from kinodyn.response.dataset import ball_for
+    from kinodyn.response.pipeline import observe
+
+    obs = observe(data.load("walk"), ball_for(1000, 5))
+    k, probs = sel(obs.states)
+    from kinodyn.response.features import features
+
+    want = model.probabilities(features(obs.states, model.kind)[None])[0]
+    assert k == int(np.argmax(want)) == sel.choose(obs.states)
+    np.testing.assert_allclose(probs, want, rtol=1e-9, atol=1e-12)

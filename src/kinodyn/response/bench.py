@@ -7,8 +7,9 @@ motions of the two paths over the reaction, the end-to-end response time with th
 dataset-generation throughput for the local and (when installed) the Ray backend.
 
 The fast path's time is reported whole (``fast_ms_per_impact``) and in its parts: ``selection_ms``
-(features and the compiled SVM vote) and ``alignment_ms`` (sampling and BFGS), with scikit-learn's own
-predict with probabilities beside them (``selection_ms_sklearn``). Each time is the best of a few
+(features and the compiled SVM choice) and ``alignment_ms`` (sampling and BFGS), with scikit-learn's own
+predict with probabilities beside them (``selection_ms_sklearn``) and the fraction of choices the
+selector's float32 pass left to its float64 values (``selection_float64_rechecks``). Each time is the best of a few
 repeats per throw, the median over the throws; numba runs on one thread for both paths.
 
 ``--quick`` scores the shipped models (no retraining) on fewer held-out throws; the full run retrains on
@@ -95,7 +96,8 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
         ts, k = _timed(lambda: selector.choose(obs.states), 5)
         ta, al = _timed(lambda: fast_align(None, (pos, rot), lib, k), 5)
         tf, _ = _timed(lambda: fast_align(None, (pos, rot), lib, selector.choose(obs.states)), 5)
-        tk, (k_sk, _) = _timed(lambda: models["large"](obs.states), 3)
+        tk, p_sk = _timed(lambda: models["large"].probabilities(features(obs.states, "large")[None])[0], 3)
+        k_sk = int(np.argmax(p_sk))
         if k_sk != k:
             raise AssertionError(f"the compiled selector chose clip {k}, the model {k_sk}")
         for key, v in zip(("exh", "fast", "sel", "align", "sk"), (te, tf, ts, ta, tk)):
@@ -113,6 +115,8 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
     res.add("selection_ms", ms["sel"], "ms")
     res.add("alignment_ms", ms["align"], "ms")
     res.add("selection_ms_sklearn", ms["sk"], "ms")
+    res.add("selection_float64_rechecks", selector.counts["float64"] / max(1, sum(selector.counts.values())),
+            "fraction")
     res.add("accuracy_large", hits["large"] / n, "fraction")
     res.add("accuracy_small", hits["small"] / n, "fraction")
     res.add("choice_d_within_10pct_large", near["large"] / n, "fraction")

@@ -61,6 +61,7 @@ class ReactionModel:
     clips: tuple
     library: str
     info: dict = field(default_factory=dict)
+    _selector: object = field(default=None, init=False, repr=False, compare=False)
 
     def predict_features(self, x: np.ndarray) -> np.ndarray:
         """``(N,)`` clip indices for feature rows ``x (N, n)``."""
@@ -73,10 +74,28 @@ class ReactionModel:
         out[:, self.pipeline.classes_.astype(np.int64)] = p
         return out
 
+    def selector(self):
+        """The compiled :class:`kinodyn.response.selector.Selector` of this model, built once; None when
+        the pipeline is of a shape it does not compile (then scikit-learn chooses). Built again when the
+        pipeline is replaced."""
+        if self._selector is None or self._selector[0] is not self.pipeline:
+            from kinodyn.response.selector import Selector
+
+            try:
+                self._selector = (self.pipeline, Selector(self))
+            except ParameterError:
+                self._selector = (self.pipeline, None)
+        return self._selector[1]
+
     def __call__(self, states) -> tuple[int, np.ndarray]:
         """The ``select`` of :func:`kinodyn.response.pipeline.respond`: clip index and probabilities for
-        the states at 0.0, 0.1 and 0.2 s after contact. The clip is the most probable one, which is what
-        the calibrated classifier predicts, so scikit-learn is asked once."""
+        the states at 0.0, 0.1 and 0.2 s after contact, from the compiled :meth:`selector` (the same
+        choices, the same probabilities to rounding); through scikit-learn, asked once, for a pipeline
+        it does not compile (the clip is then the most probable one, which is what the calibrated
+        classifier predicts)."""
+        sel = self.selector()
+        if sel is not None:
+            return sel(states)
         probs = self.probabilities(features(states, self.kind)[None])[0]
         return int(np.argmax(probs)), probs
 

@@ -35,7 +35,8 @@ FEET = ("LeftFoot", "RightFoot")
 @numba.njit(cache=True)
 def _rotate(q, v):  # pragma: no cover - compiled
     """:func:`kinodyn.math.quat.mul_vec` of one ``q (4,)`` and vectors ``v (N, 3)``, the same arithmetic in
-    the same order (bit for bit; without numpy's per-call overhead, which is most of a feature vector)."""
+    the same order (bit for bit; without numpy's per-call overhead, which is most of a feature vector;
+    compiled without fast-math, so no fused multiply-adds either)."""
     w, ux, uy, uz = q[0], q[1], q[2], q[3]
     out = np.empty_like(v)
     for n in range(v.shape[0]):
@@ -66,17 +67,54 @@ def _index(names, wanted, fallback: str) -> list[int]:
     return out
 
 
+@numba.njit(cache=True)
+def _large_slice(q, origin, pos, rot, linvel, angvel, feet, spine, feet_idx, out):  # pragma: no cover
+    """The 66 ``large`` values of one state into ``out``: the spine bodies' positions (from ``origin``),
+    orientations (``quat.abs(quat.mul(q, .))``, the same arithmetic in the same order), linear and
+    angular velocities, the feet's positions and velocities, all rotated by ``q``, then the contacts."""
+    n_s, n_f = spine.shape[0], feet_idx.shape[0]
+    vec = np.empty((3 * n_s + 2 * n_f, 3))
+    for a in range(n_s):
+        for k in range(3):
+            vec[a, k] = pos[spine[a], k] - origin[k]
+            vec[n_s + a, k] = linvel[spine[a], k]
+            vec[2 * n_s + a, k] = angvel[spine[a], k]
+    for a in range(n_f):
+        for k in range(3):
+            vec[3 * n_s + a, k] = pos[feet_idx[a], k] - origin[k]
+            vec[3 * n_s + n_f + a, k] = linvel[feet_idx[a], k]
+    r = _rotate(q, vec)
+    o = 0
+    for a in range(n_s):
+        for k in range(3):
+            out[o] = r[a, k]
+            o += 1
+    aw, ax, ay, az = q[0], q[1], q[2], q[3]
+    for a in range(n_s):
+        bw, bx, by, bz = rot[spine[a], 0], rot[spine[a], 1], rot[spine[a], 2], rot[spine[a], 3]
+        m = (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+             aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+        for k in range(4):
+            out[o] = -m[k] if m[0] < 0.0 else m[k]
+            o += 1
+    for a in range(n_s, r.shape[0]):
+        for k in range(3):
+            out[o] = r[a, k]
+            o += 1
+    for a in range(feet.shape[0]):
+        out[o] = 1.0 if feet[a] else 0.0
+        o += 1
+
+
 def _large(states, q, origin) -> np.ndarray:
     names = list(states[0].names)
-    spine, feet = _index(names, SPINE, "large"), _index(names, FEET, "large")
-    pos = np.stack([s.pos for s in states])  # (3, B, 3); every slice rotated in one call below
-    vel = np.stack([s.linvel for s in states])
-    vec = np.concatenate([pos[:, spine] - origin, vel[:, spine], np.stack([s.angvel[spine] for s in states]),
-                          pos[:, feet] - origin, vel[:, feet]], axis=1)  # (3, 18, 3)
-    r = _rotate(q, vec.reshape(-1, 3)).reshape(len(states), -1)
-    rot = quat.abs(quat.mul(q, np.stack([s.quat[spine] for s in states]))).reshape(len(states), -1)
-    feet_on = np.stack([s.feet for s in states]).astype(np.float64)
-    return np.concatenate([r[:, :12], rot, r[:, 12:], feet_on], axis=1).ravel()
+    spine = np.array(_index(names, SPINE, "large"), dtype=np.int64)
+    feet = np.array(_index(names, FEET, "large"), dtype=np.int64)
+    width = 12 * len(SPINE) + 8 * len(FEET) + 2  # 66
+    out = np.empty((len(states), width))
+    for i, s in enumerate(states):  # three slices, one compiled call each
+        _large_slice(q, origin, s.pos, s.quat, s.linvel, s.angvel, s.feet, spine, feet, out[i])
+    return out.ravel()
 
 
 def _small(states, q, origin) -> np.ndarray:

@@ -94,7 +94,8 @@ class ResponseConfig:
 
 @dataclass(frozen=True)
 class Stages:
-    """Frame ranges ``[start, stop)`` of each stage in the output motion."""
+    """Frame ranges ``[start, stop)`` of each stage in the output motion. The simulation ends with the
+    frame the choice is made in; the transition starts with the first frame the blended target drives."""
 
     motion: tuple[int, int]
     simulation: tuple[int, int]
@@ -450,7 +451,10 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
     if rest.num_frames:
         out = out.concatenate(rest, align=False, drop_first=False)
     out = out.replace(name=f"{base.name} -> {clip.name}")
-    stages = Stages((0, c), (c, t0), (t0, t1 + 1), (t1 + 1, out.num_frames))
+    # Frame t0 is the state the choice is made in, simulated under the interrupted motion's target (the
+    # blend's weight is 0 there): the simulation's last frame. The transition is what the blended target
+    # drives, from t0 + 1.
+    stages = Stages((0, c), (c, t0 + 1), (t0 + 1, t1 + 1), (t1 + 1, out.num_frames))
     impulse = _impulse(world, hit)
     hits = tuple(i for i in world.impacts if i.character == hit.name)
     return Response(out, stages, clip.name, k, fs, fm, float(err), c / fps, impulse, sim[c:], lookahead,
