@@ -144,6 +144,7 @@ def test_a_model_chooses_through_its_compiled_selector(lib, monkeypatch):
     choice and probabilities; a pipeline the selector cannot compile falls back to scikit-learn."""
     import copy
 
+    from sklearn.calibration import CalibratedClassifierCV
     from sklearn.pipeline import make_pipeline
     from sklearn.preprocessing import StandardScaler
     from sklearn.svm import SVC
@@ -166,7 +167,8 @@ def test_a_model_chooses_through_its_compiled_selector(lib, monkeypatch):
     rng = np.random.default_rng(4)
     x, y = _blobs(rng, dim=198)
     other = copy.copy(model)
-    other.pipeline = make_pipeline(StandardScaler(), SVC(kernel="rbf", probability=True, random_state=0)).fit(x, y)
+    rbf = CalibratedClassifierCV(SVC(kernel="rbf", random_state=0), method="sigmoid", ensemble=False)
+    other.pipeline = make_pipeline(StandardScaler(), rbf).fit(x, y)
     assert other.selector() is None
     k, probs = other(obs.states)
     assert k == int(np.argmax(probs)) and probs.shape == (len(lib),)
