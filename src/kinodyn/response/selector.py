@@ -108,9 +108,9 @@ def _vote(dec, n_class):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _calibrated(dec, n_class, a, b):  # pragma: no cover - compiled
-    """The most probable class of a sigmoid-calibrated SVC: scikit-learn's one-against-rest values from
-    the pairwise ``dec``, each through ``1 / (1 + exp(a f + b))`` (the first of equals)."""
+def _sigmoids(dec, n_class, a, b, out):  # pragma: no cover - compiled
+    """A sigmoid-calibrated SVC's per-class values into ``out (n_class,)``: scikit-learn's
+    one-against-rest values from the pairwise ``dec``, each through ``1 / (1 + exp(a f + b))``."""
     votes = np.zeros(n_class)
     conf = np.zeros(n_class)
     p = 0
@@ -123,12 +123,20 @@ def _calibrated(dec, n_class, a, b):  # pragma: no cover - compiled
             else:
                 votes[i] += 1.0
             p += 1
-    best, best_p = 0, -1.0
     for i in range(n_class):
         f = votes[i] + conf[i] / (3.0 * (abs(conf[i]) + 1.0))
-        prob = 1.0 / (1.0 + np.exp(a[i] * f + b[i]))
-        if prob > best_p:
-            best, best_p = i, prob
+        out[i] = 1.0 / (1.0 + np.exp(a[i] * f + b[i]))
+
+
+@numba.njit(cache=True)
+def _calibrated(dec, n_class, a, b):  # pragma: no cover - compiled
+    """The most probable class of a sigmoid-calibrated SVC (the first of equals)."""
+    values = np.empty(n_class)
+    _sigmoids(dec, n_class, a, b, values)
+    best = 0
+    for i in range(1, n_class):
+        if values[i] > values[best]:
+            best = i
     return best
 
 
@@ -254,21 +262,7 @@ def _probabilities(dec, n_class, a, b, out):  # pragma: no cover - compiled
     """scikit-learn's ``predict_proba`` of a sigmoid-calibrated SVC from the pairwise ``dec`` into
     ``out (n_class,)``: the one-against-rest values through their sigmoids, normalized to sum 1
     (uniform where every sigmoid is 0); values within 1e-5 above 1 clipped to 1, as scikit-learn does."""
-    votes = np.zeros(n_class)
-    conf = np.zeros(n_class)
-    p = 0
-    for i in range(n_class):
-        for j in range(i + 1, n_class):
-            conf[i] += dec[p]
-            conf[j] -= dec[p]
-            if dec[p] < 0.0:
-                votes[j] += 1.0
-            else:
-                votes[i] += 1.0
-            p += 1
-    for i in range(n_class):
-        f = votes[i] + conf[i] / (3.0 * (abs(conf[i]) + 1.0))
-        out[i] = 1.0 / (1.0 + np.exp(a[i] * f + b[i]))
+    _sigmoids(dec, n_class, a, b, out)
     total = out.sum()
     for i in range(n_class):
         out[i] = out[i] / total if total != 0.0 else 1.0 / n_class
