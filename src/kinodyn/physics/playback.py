@@ -75,13 +75,15 @@ def clip_qvel(bmap, root_pos: np.ndarray, local_rot: np.ndarray, fps: float) -> 
 
 
 def lead_steps(body: CharacterBody, dt: float) -> np.ndarray:
-    """``(nu,)`` steps by which each control's target leads: ``kv/kp`` of its servo, or the configured
-    lookahead."""
+    """``(nu,)`` steps by which each control's target leads: the configured lookahead, else ``kv/kp`` of
+    its servo (none with ``feedforward="dynamics"``, whose torques carry the damping)."""
     bm = body.map
     out = np.zeros(bm.nu, dtype=np.int64)
     for k, b in enumerate(bm.actuated):
         if body.pd.lookahead is not None:
             lead = body.pd.lookahead
+        elif body.pd.feedforward == "dynamics":
+            lead = 0.0  # its feedforward carries the servo's damping of the clip's velocities
         else:
             lead = body.kv[k] / body.kp[k] if body.kp[k] > 0 else 0.0
         a, w = bm.ctrl_adr[b], bm.ctrl_width[b]

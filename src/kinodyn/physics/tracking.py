@@ -20,7 +20,9 @@ still needs nothing from Python: a followed clip is read ``kv/kp`` seconds ahead
 ``kp (q(t + kv/kp) - q) - kv w ~ kp (q* - q) + kv (w* - w)``, a PD on the velocity error too), and the
 static torque of the target pose, gravity less the weight the feet on the floor carry, turns each target
 by ``torque / kp`` (``feedforward``, :func:`feedforward_targets`). On the built-in walk they bring the
-mean joint error of a body hanging from a fixed root from several degrees to under one.
+mean joint error of a body hanging from a fixed root from several degrees to under one. With
+``feedforward="dynamics"`` the targets carry the clip's whole inverse dynamics instead (with the servos'
+damping of its velocities, so no lookahead), the ground's forces placed at the pose's own contacts.
 
 Shapes: ``B`` segments, ``A`` actuated segments (all but the root). Units: N m/rad, N m s/rad, kg m^2.
 """
@@ -58,6 +60,11 @@ DEFAULT_GAINS: Mapping[str, float] = MappingProxyType({
     "other": 1.0,
 })
 
+#: Largest turn (rad) of a servo target by its feedforward (``"dynamics"``): an orientation servo's pull
+#: peaks at half a turn of error and wraps beyond it; a torque its gain cannot reach is delivered up to
+#: this turn (an ankle of the built-in humanoid, kp about 40 N m/rad, carries a push-off of 150 N m).
+_MAX_TURN = 1.0
+
 #: w * halflife for a critically damped oscillator: (1 + x) exp(-x) = 1/2.
 _HALF = 1.6783469900166608
 
@@ -80,13 +87,15 @@ class PDConfig:
         feedforward: joint torques folded into the targets so the servos need not lag to produce
             them (:func:`feedforward_targets`): ``"static"`` (gravity less the body weight carried by
             the feet on the floor), ``"dynamics"`` (inverse dynamics of the clip: also its velocities
-            and accelerations, from finite differences; on the built-in walk it keeps the centre of mass
-            closer to the clip but the limbs no closer) or ``"none"``. It scales with the stiffness
-            (limp = none).
+            and accelerations and the servos' damping of its velocities, the ground carrying the body
+            at the pose's own contacts, ankles included; switched from playback at any time of the
+            built-in run, the body is closer to the clip one frame later than with ``"static"``) or
+            ``"none"``. It scales with the stiffness (limp = none).
         lookahead: seconds by which a followed clip's targets lead the simulation. The servos have no
             velocity target, so their damping makes them lag by ``kv/kp``; aiming at the pose ``kv/kp``
             ahead cancels that to first order (``kp (q(t + kv/kp) - q) ~ kp (q* - q) + kv dq*/dt``).
-            ``None`` uses each servo's own ``kv/kp``.
+            ``None`` uses each servo's own ``kv/kp``, or none with ``feedforward="dynamics"`` (its
+            torques carry the servos' damping of the clip's velocities exactly).
     """
 
     halflife: float = 0.04
@@ -259,14 +268,24 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
             lookahead); the torque folded into row ``r`` is the one of sample ``r - lead``, so it acts
             when it is due.
 
-    The feedforward ``tau`` is what the joints must apply for the body to follow the clip (``mj_rne``):
-    gravity (``"static"``) and the clip's velocities and accelerations (``"dynamics"``), less the
-    ground's force under the feet on the floor, ``J^T f`` at their soles, where ``f`` is the force that
-    moves the centre of mass as the clip does (``M (a_com - g)``; its vertical part only for
-    ``"static"``, within the friction cone), split between two feet so that the split lies under the
-    centre of mass. For a ball joint the target turns by ``exp(tau / kp)`` in the joint's frame, for a
-    hinge by ``tau / kp``: near the target the servo then applies ``kp * error + tau``. Ankles and toes get
-    none (where the sole presses is not known). A fixed-root character's feet carry nothing.
+    The feedforward ``tau`` is what the joints must apply for the body to follow the clip (``mj_rne``).
+
+    ``"static"``: gravity, less the ground's vertical force ``J^T f`` under the feet on the floor (at
+    their soles, ``f`` the body's weight split between two feet so that the split lies under the centre
+    of mass). Ankles and toes get none (where the sole presses is not known).
+
+    ``"dynamics"``: gravity and the clip's velocities and accelerations (forward differences: a step
+    integrated from ``qvel[i]`` with ``qacc[i]`` lands on ``qvel[i + 1]``) and the damping of those
+    velocities by the servos (``kv``) and the joints, less the ground's forces at the points where the
+    pose touches the floor (MuJoCo's own contacts of the pose, as the simulation finds them): the forces
+    within the friction cone that come as close as the cone allows to what the unactuated root needs,
+    and among those the ones that leave the servos the least turn (:func:`_ground_forces`). Ankles get
+    theirs (a foot on its toes carries the body through its ankle), up to :data:`_MAX_TURN`; toes none
+    (their servos are too weak to carry the body; the ground is asked to carry it beside them).
+
+    For a ball joint the target turns by ``exp(tau / kp)`` in the joint's frame, for a hinge by
+    ``tau / kp``: near the target the servo then applies ``kp * error + tau``. A fixed-root character's
+    feet carry nothing.
     """
     bm = body.map
     mode = body.pd.feedforward
@@ -274,12 +293,14 @@ def feedforward_targets(body, qpos: np.ndarray, ctrl: np.ndarray, qvel: np.ndarr
     n = len(out)
     if mode == "none" or n == 0 or len(bm.actuated) == 0:
         return out
-    dyn = mode == "dynamics" and qvel is not None and dt is not None and n > 1
     m = body.model()
     d = mujoco.MjData(m)
-    tau, coms, supports = _clip_torques(m, d, bm, qpos, qvel if dyn else None, dt, root_quat, contact_height)
-    a_com = np.gradient(np.gradient(coms, dt, axis=0), dt, axis=0) if dyn else np.zeros((n, 3))
-    _less_ground_force(m, d, qpos, tau, coms, supports, a_com, body.config.friction, dyn)
+    if mode == "dynamics" and qvel is not None and dt is not None and n > 1:
+        tau = _dynamics_torques(body, m, d, qpos, np.asarray(qvel, dtype=np.float64), dt, root_quat)
+        _fold_torques(out, bm, body.kp, tau, lead_steps, skip=("toe",), max_turn=_MAX_TURN)
+        return out
+    tau, coms, supports = _static_torques(m, d, bm, qpos, root_quat, contact_height)
+    _less_body_weight(m, d, qpos, tau, coms, supports)
     _fold_torques(out, bm, body.kp, tau, lead_steps)
     return out
 
@@ -295,16 +316,12 @@ def _sole_geoms(m: mujoco.MjModel, bm) -> dict:
     return soles
 
 
-def _clip_torques(m, d, bm, qpos, qvel, dt, root_quat, contact_height):
-    """Inverse dynamics of each sample (``mj_rne``; with the clip's velocities and accelerations when
-    ``qvel`` is given): ``tau (n, nv)``, the centres of mass ``(n, 3)`` and per sample the feet on the
-    floor as ``(body id, sole point (3,))``."""
+def _static_torques(m, d, bm, qpos, root_quat, contact_height):
+    """Gravity torques of each sample (``mj_rne``): ``tau (n, nv)``, the centres of mass ``(n, 3)`` and
+    per sample the feet on the floor as ``(body id, sole point (3,))``."""
     n = len(qpos)
-    dyn = qvel is not None
     free = bm.segments[0].kind == "free"
     soles = _sole_geoms(m, bm)
-    if dyn:
-        qacc = np.gradient(np.asarray(qvel, dtype=np.float64), dt, axis=0)
     tau = np.zeros((n, m.nv))
     coms = np.zeros((n, 3))
     supports = []
@@ -312,13 +329,11 @@ def _clip_torques(m, d, bm, qpos, qvel, dt, root_quat, contact_height):
         d.qpos[:] = qpos[i]
         if root_quat is not None and m.nmocap:
             d.mocap_quat[0] = root_quat[i]
-        d.qvel[:] = qvel[i] if dyn else 0.0
+        d.qvel[:] = 0.0
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         mujoco.mj_comVel(m, d)
-        if dyn:
-            d.qacc[:] = qacc[i]
-        mujoco.mj_rne(m, d, 1 if dyn else 0, tau[i])
+        mujoco.mj_rne(m, d, 0, tau[i])
         coms[i] = d.subtree_com[1]
         support = []
         if free:
@@ -333,23 +348,15 @@ def _clip_torques(m, d, bm, qpos, qvel, dt, root_quat, contact_height):
     return tau, coms, supports
 
 
-def _less_ground_force(m, d, qpos, tau, coms, supports, a_com, mu: float, dyn: bool) -> None:
-    """Subtract from ``tau (n, nv)`` the joint torques ``J^T f`` of the ground's force under the feet on
-    the floor: ``f = M (a_com - g)`` (vertical only unless ``dyn``) within the friction cone ``mu``,
-    split between two feet so the shares' centre lies under the centre of mass."""
-    mass = float(m.body_mass[1:].sum())
-    g = np.array(m.opt.gravity)
+def _less_body_weight(m, d, qpos, tau, coms, supports) -> None:
+    """Subtract from ``tau (n, nv)`` the joint torques ``J^T f`` of the ground's vertical force ``f``
+    (the body's weight) under the feet on the floor, split between two feet so the shares' centre lies
+    under the centre of mass."""
+    f = np.array([0.0, 0.0, max(-float(m.body_mass[1:].sum()) * float(m.opt.gravity[2]), 0.0)])
     jacp = np.zeros((3, m.nv))
     for i, support in enumerate(supports):
         if not support:
             continue
-        f = mass * (a_com[i] - g)
-        if not dyn:
-            f[:2] = 0.0
-        f[2] = max(f[2], 0.0)
-        fh = np.linalg.norm(f[:2])
-        if fh > mu * f[2]:
-            f[:2] *= mu * f[2] / fh
         # the recomputation of kinematics is needed for mj_jac at sample i
         d.qpos[:] = qpos[i]
         mujoco.mj_kinematics(m, d)
@@ -366,9 +373,75 @@ def _less_ground_force(m, d, qpos, tau, coms, supports, a_com, mu: float, dyn: b
             tau[i] -= jacp.T @ (w * f)
 
 
-def _fold_torques(out: np.ndarray, bm, kp: np.ndarray, tau: np.ndarray, lead_steps) -> None:
-    """Turn each servo target of ``out (n, nu)`` by its torque over its gain ``kp (A,)`` (ankles and
-    toes excepted), reading ``tau (n, nv)`` ``lead_steps (nu,)`` samples behind."""
+def _dynamics_torques(body, m, d, qpos, qvel, dt: float, root_quat) -> np.ndarray:
+    """``(n, nv)`` joint torques that make the body follow the clip (see :func:`feedforward_targets`,
+    ``"dynamics"``)."""
+    bm = body.map
+    qacc = np.diff(qvel, axis=0, append=qvel[-1:]) / dt  # a step from qvel[i] lands on qvel[i + 1]
+    qacc[-1] = qacc[-2]
+    weight = np.zeros(m.nv)  # radians of servo turn per N m, and the servos' damping, at each dof
+    kv = np.zeros(m.nv)
+    for k, b in enumerate(bm.actuated):
+        dofs = slice(bm.dof_adr[b], bm.dof_adr[b] + bm.dof_width[b])
+        weight[dofs] = 1.0 / body.kp[k] if body.kp[k] > 0 else 0.0
+        kv[dofs] = body.kv[k]
+    free = bm.segments[0].kind == "free"
+    tau = np.zeros((len(qpos), m.nv))
+    for i in range(len(qpos)):
+        d.qpos[:] = qpos[i]
+        if root_quat is not None and m.nmocap:
+            d.mocap_quat[0] = root_quat[i]
+        d.qvel[:] = qvel[i]
+        d.qacc[:] = qacc[i]
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_comVel(m, d)
+        mujoco.mj_rne(m, d, 1, tau[i])
+        if free:
+            g = _contact_edges(m, d, body.config.friction)
+            if len(g):
+                tau[i] -= _ground_forces(g, tau[i], weight) @ g
+    # the servos and the joints' damping resist the clip's own velocities, the armature its accelerations
+    return tau + (kv + m.dof_damping) * qvel + m.dof_armature * qacc
+
+
+def _contact_edges(m, d, mu: float) -> np.ndarray:
+    """``(4 k, nv)`` generalized forces of a unit force along each edge of the friction cone (pyramid,
+    ``mu``) at each of the ``k`` points where the posed body touches the ground (MuJoCo's collision of
+    the stand-alone model, whose ground is on the world body)."""
+    mujoco.mj_collision(m, d)
+    jacp = np.zeros((3, m.nv))
+    rows = []
+    for con in d.contact[:d.ncon] if d.ncon else ():
+        b1, b2 = int(m.geom_bodyid[con.geom1]), int(m.geom_bodyid[con.geom2])
+        if con.dist > 0 or (b1 == 0) == (b2 == 0):
+            continue  # not touching, or not between the ground and the body
+        frame = con.frame.reshape(3, 3)
+        normal = frame[0] if b1 == 0 else -frame[0]  # from the ground into the body
+        mujoco.mj_jac(m, d, jacp, None, con.pos, b2 if b1 == 0 else b1)
+        rows.append(np.array([normal + s * mu * frame[k] for k in (1, 2) for s in (1.0, -1.0)]) @ jacp)
+    return np.concatenate(rows) if rows else np.zeros((0, m.nv))
+
+
+def _ground_forces(g: np.ndarray, tau: np.ndarray, weight: np.ndarray, ridge: float = 1e-4) -> np.ndarray:
+    """``(k,)`` non-negative magnitudes ``x`` along ``k`` friction-cone edges whose generalized forces are
+    the rows of ``g (k, nv)``: the free root's need ``tau[:6]`` is met as closely as the cone allows
+    (``x @ g[:, :6]``), and among the ways to meet it the one that leaves the joints the least turn of
+    their servo targets (``weight (nv,)`` radians per N m) is chosen."""
+    from scipy.optimize import nnls
+
+    k = len(g)
+    s = np.sqrt(ridge)
+    a = np.concatenate([g[:, :6].T, s * (g[:, 6:] * weight[6:]).T, 1e-6 * np.eye(k)])
+    b = np.concatenate([tau[:6], s * tau[6:] * weight[6:], np.zeros(k)])
+    return nnls(a, b, maxiter=50 * k)[0]
+
+
+def _fold_torques(out: np.ndarray, bm, kp: np.ndarray, tau: np.ndarray, lead_steps, skip=("foot", "toe"),
+                  max_turn: float = np.inf) -> None:
+    """Turn each servo target of ``out (n, nu)`` by its torque over its gain ``kp (A,)``, at most
+    ``max_turn`` radians (the servos of segment classes ``skip`` excepted), reading ``tau (n, nv)``
+    ``lead_steps (nu,)`` samples behind."""
     from kinodyn.math import quat
 
     n = len(out)
@@ -376,10 +449,13 @@ def _fold_torques(out: np.ndarray, bm, kp: np.ndarray, tau: np.ndarray, lead_ste
     for k, b in enumerate(bm.actuated):
         s = bm.segments[b]
         a, v = bm.ctrl_adr[b], bm.dof_adr[b]
-        if kp[k] <= 0 or s.cls in ("foot", "toe"):
-            continue  # ankles and toes: where the sole presses is not known statically; the servo decides
+        if kp[k] <= 0 or s.cls in skip:
+            continue
         src = rows if lead_steps is None else np.clip(rows - int(lead_steps[a]), 0, n - 1)
+        turn = tau[src, v:v + bm.dof_width[b]] / kp[k]
+        norm = np.linalg.norm(turn, axis=1, keepdims=True)
+        turn *= np.minimum(1.0, max_turn / np.maximum(norm, 1e-300))
         if s.kind == "ball":
-            out[:, a:a + 4] = quat.mul(out[:, a:a + 4], quat.from_rotvec(tau[src, v:v + 3] / kp[k]))
+            out[:, a:a + 4] = quat.mul(out[:, a:a + 4], quat.from_rotvec(turn))
         else:
-            out[:, a] += tau[src, v] / kp[k]
+            out[:, a] += turn[:, 0]

@@ -11,9 +11,12 @@ is in one of two modes:
 * **dynamic**: MuJoCo integrates it; in-engine PD servos (:mod:`kinodyn.physics.tracking`) drive it toward
   the clip's pose at the current time (or a pose set with :meth:`Character.track`). Switching from
   kinematic starts from the clip's positions and velocities at that instant. One frame later the body
-  is within about 1.4 cm of the clip, but its velocities are 8-14 % (built-in walk and run) and 20-23 %
-  (CMU 02_01) off where the ground does not yet carry the weight the clip needs (the sweep in
-  ``tests/test_physics_switch.py``).
+  is within about 1.4 cm of the clip, but its velocities are up to 12-14 % (built-in walk and run) and
+  23 % (CMU 02_01) off where the ground does not carry what the clip needs: a stance foot on its toes
+  whose ankle carries nothing, a frame asking for more than friction gives, a captured stance foot a
+  few millimetres above the floor (the sweep in ``tests/test_physics_switch.py`` and its measured
+  causes). With ``PDConfig(feedforward="dynamics")`` the servos carry the clip's inverse dynamics from
+  the first step (on the built-in run 9 % at worst).
 
 A character can also be given a fixed root (``BodyConfig(root="fixed")``): its pelvis hangs where it is
 placed (a mocap body) and the limbs are simulated.
