@@ -114,10 +114,15 @@ def constrain_reference(self, root, q, w, wn, phase, left, rest, dt: float, head
     gp[..., 2] -= self.drop[:, None]
     # a planted foot never strays more than max_foot_offset from where the blend puts it: beyond
     # that the blend has moved on to another stance and the foot slides along (bounded leg stretch)
+    # (its height correction and this frame's root follow included)
     off = self.foot_xy - xy
-    dist = np.linalg.norm(off, axis=-1)
+    pre = off + shift[:, None, :]
+    dist = np.linalg.norm(pre, axis=-1)
     lim = self.config.max_foot_offset
-    scale = np.where(planted & (dist > lim), lim / np.maximum(dist, 1e-12), 1.0)
+    rad = np.sqrt(np.maximum(lim * lim - lift * lift, 0.0))
+    moved = planted & (dist > rad)
+    off = np.where(moved[..., None], pre * (rad / np.maximum(dist, 1e-12))[..., None] - shift[:, None, :], off)
+    scale = np.ones_like(dist)
     # ... and never further than the leg reaches: the ankle moves by `off` horizontally, so keep
     # the largest fraction of it that leaves the ankle within the leg's length of the hip (or
     # within the blended pose's own hip-ankle distance when that is longer)
@@ -137,7 +142,7 @@ def constrain_reference(self, root, q, w, wn, phase, left, rest, dt: float, head
         lam = np.where(a_ > 1e-12, (-b_ + np.sqrt(disc)) / np.maximum(a_, 1e-12), 1.0)
         lam = np.clip(lam, 0.0, 1.0)
         scale[:, s] *= np.where(planted[:, s], lam, 1.0)
-    if np.any(scale < 1.0):
+    if np.any(scale < 1.0) or np.any(moved):
         self.foot_xy = xy + off * scale[..., None]
     self.foot_pt = np.where(planted, idx, -1)
     self.planted = planted
@@ -381,10 +386,10 @@ def test_compiled_frame_blend_matches_numpy(lib):
     assert quat.angle_between(q1, q2).max() < 1e-12
 
 
-def _crowd_poses(lib, compiled: bool, synchronize: bool = True, n: int = 6, frames: int = 240):
+def _crowd_poses(lib, compiled: bool, synchronize: bool = True, n: int = 6, frames: int = 240, **config):
     """A small crowd with restarts, stops and higher-priority actions; every frame's poses."""
     rng = np.random.default_rng(3)
-    mx = Mixer(lib, n, BlendConfig(synchronize=synchronize, max_actions=5))
+    mx = Mixer(lib, n, BlendConfig(synchronize=synchronize, max_actions=5, **config))
     if not compiled:   # the numpy references of the weights and of the support constraints
         mx.compiled = False
         mx.footlock.constrain = functools.partial(constrain_reference, mx.footlock)
@@ -427,6 +432,18 @@ def test_compiled_mixer_matches_numpy_reference(synchronize):
         stored = [[0.0, 0.0, 0.989644181], [0.0, 0.0, 0.989643308], [1.497719604, 0.157468841, 0.930940561],
                   [3.07158376, 0.33472448, 0.922517688], [2.919481536, 0.21362477, 0.952874219]]
         np.testing.assert_allclose(r_fast[::60].reshape(-1, 3)[::5], stored, atol=2e-9, rtol=0, err_msg="stored")
+
+
+def test_compiled_lock_bound_matches_numpy_reference():
+    """With a bound the held feet reach (``max_foot_offset`` 3 cm), the compiled lock bounds them as the
+    numpy reference does (the bound counts the root's follow and the height correction)."""
+    lib = builtin(["idle", "walk", "run", "punch", "kick", "jump"])
+    r_fast, q_fast = _crowd_poses(lib, True, True, max_foot_offset=0.03)
+    r_ref, q_ref = _crowd_poses(lib, False, True, max_foot_offset=0.03)
+    np.testing.assert_allclose(r_fast, r_ref, atol=_TOL, rtol=0, err_msg="root")
+    np.testing.assert_allclose(q_fast, q_ref, atol=_TOL, rtol=0, err_msg="rotations")
+    r_free, _ = _crowd_poses(lib, True, True)
+    assert np.abs(r_free - r_fast).max() > 1e-3   # the bound changed the poses: it was exercised
 
 
 def test_figure_script_matches_the_stored_root_path():

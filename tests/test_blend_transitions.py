@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from kinodyn.blend import realclips
-from kinodyn.blend.evaluate import ARMS, evaluate, source_contacts, table
+from kinodyn.blend.evaluate import ARMS, evaluate, lock_events, source_contacts, table
 from kinodyn.phases import ERR, LS, RS
 from kinodyn.blend.transitions import transition_script
 
@@ -97,6 +97,35 @@ def test_synchronization_lets_the_lock_hold_feet_without_distorting_the_pose(bui
     assert figs["lock_p95_ratio"] >= 2.5, figs["lock_p95_ratio"]
     assert s["lock_p95_cm"] < 6.0 and l["lock_p95_cm"] > 12.0
     assert s["lowest_foot_cm"] > -1.0
+
+
+def test_max_foot_offset_bounds_the_displacement_the_evaluation_reports():
+    """``max_foot_offset`` bounds all the lock does to a held foot, as measured: its root follow, the
+    IK's offset and the height correction (up to 5.3 cm here). The height correction itself is never
+    given up: without synchronization the blend puts feet up to 8 cm under the floor, and the lock
+    lifts them that far whatever the bound."""
+    figs = evaluate(transition_script(), max_foot_offset=0.06)
+    s = figs["arms"]["sync_lock"]
+    assert s["lock_max_cm"] <= 6.0 + 1e-6, s["lock_max_cm"]
+    assert s["lowest_foot_cm"] > -1.0
+
+
+def test_lock_events_find_where_the_lock_displaces_feet(builtin):
+    """The events cover exactly the frames where a held foot is displaced beyond the threshold, worst
+    first; the worst is the evaluation's maximum and names the foot and the actions playing there."""
+    figs, results = builtin
+    r = results["sync_lock"]
+    off = np.nan_to_num(r.recording.lock_offsets()[:r.motion.num_frames] * 100.0, nan=0.0)
+    events = lock_events(r, above_cm=3.0)
+    assert sum(e["frames"] for e in events) == int((off.max(axis=1) > 3.0).sum()) > 0
+    assert [e["peak_cm"] for e in events] == sorted((e["peak_cm"] for e in events), reverse=True)
+    top = events[0]
+    assert top["peak_cm"] == pytest.approx(figs["arms"]["sync_lock"]["lock_max_cm"], abs=1e-9)
+    assert top["t0"] <= top["t_peak"] <= top["t1"]
+    assert top[f"{top['foot']}_cm"] == pytest.approx(top["peak_cm"])
+    assert top["weights"] and sum(top["weights"].values()) + top["neutral"] == pytest.approx(1.0, abs=0.05)
+    spans = sorted((e["t0"], e["t1"]) for e in events)
+    assert all(a[1] < b[0] for a, b in zip(spans, spans[1:]))
 
 
 def test_builtin_time_warp_stays_within_a_fifth_to_two_and_a_half_times_the_clips_speed(builtin):

@@ -16,7 +16,8 @@ them defines:
 - **sliding on detected contacts**: :func:`kinodyn.contacts.sliding` on contacts detected on the
   result (it cannot see a foot sliding faster than the detector's speed threshold).
 - **lock displacement**: how far the lock holds each held foot from where the blended pose puts it
-  (:meth:`~kinodyn.blend.actions.Recording.lock_offsets`): mean, p95, max (cm).
+  (:meth:`~kinodyn.blend.actions.Recording.lock_offsets`): mean, p95, max (cm); :func:`lock_events`
+  says where (the spans beyond a threshold, the foot, the actions and their weights).
 - **RS+LS frames**: frames where a right and a left single support of contributing actions meet.
 - **pelvis acceleration**: peak norm of the root's second difference (m/s^2), against the sources'
   peak measured the same way at the script's frame rate and the action's speed; **root deceleration**:
@@ -33,7 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ARMS", "SourceContacts", "evaluate", "headline", "measure", "source_contacts", "source_peaks"]
+__all__ = ["ARMS", "SourceContacts", "evaluate", "headline", "lock_events", "measure", "source_contacts",
+           "source_peaks"]
 
 #: ``(name, synchronize, foot lock)`` of the four arms.
 ARMS = (("plain", False, False), ("sync", True, False), ("lock", False, True), ("sync_lock", True, True))
@@ -169,6 +171,34 @@ def measure(result, sources: SourceContacts | None = None) -> dict:
         "frames": int(m.num_frames),
         "starts": {str(k): [round(a, 4), None if b is None else round(b, 4)] for k, (a, b) in result.starts.items()},
     }
+
+
+def lock_events(result, above_cm: float = 3.0) -> list[dict]:
+    """Where the lock displaces held feet most: every span of frames where it holds a foot more than
+    ``above_cm`` from where the blended pose puts it (:meth:`~kinodyn.blend.actions.Recording.lock_offsets`),
+    worst first.
+
+    Each event: ``t0``, ``t1`` (seconds, first and last frame), ``frames``, ``t_peak``, ``peak_cm``, the
+    ``foot`` displaced most there (``"left"``/``"right"``), ``left_cm``, ``right_cm`` (NaN: not held),
+    ``neutral`` (the neutral pose's weight) and ``weights`` (every action's weight over 1 %) at the peak.
+    """
+    rec = result.recording.arrays()
+    n = result.motion.num_frames
+    off = result.recording.lock_offsets()[:n] * 100.0
+    worst = np.nan_to_num(off, nan=0.0).max(axis=1)
+    edge = np.diff(np.concatenate([[0], (worst > above_cm).astype(np.int8), [0]]))
+    t = rec["t"]
+    events = []
+    for a, b in zip(np.nonzero(edge == 1)[0], np.nonzero(edge == -1)[0]):   # one pass per event
+        i = int(a + np.argmax(worst[a:b]))
+        lr = np.nan_to_num(off[i], nan=-1.0)
+        events.append({"t0": float(t[a]), "t1": float(t[b - 1]), "frames": int(b - a), "t_peak": float(t[i]),
+                       "peak_cm": float(worst[i]), "foot": "left" if lr[0] >= lr[1] else "right",
+                       "left_cm": float(off[i, 0]), "right_cm": float(off[i, 1]),
+                       "neutral": float(rec["neutral"][i]),
+                       "weights": {str(k): round(float(rec[k][1][i]), 3) for k in result.actions
+                                   if k in rec and rec[k][1][i] > 0.01}})
+    return sorted(events, key=lambda e: -e["peak_cm"])
 
 
 def _ratio(a: float, b: float) -> float:

@@ -16,7 +16,10 @@ double support, as the actions' sequences say
 half. So the root never jumps when a foot lifts or lands. Two-bone inverse kinematics of each leg (hip,
 knee, ankle) then puts the feet where they are held, keeping each foot's world orientation; when a held
 foot is beyond a straight leg's reach (the back foot at push-off) the pelvis comes down a little, and
-beyond that the foot follows the pose.
+beyond that the foot follows the pose. Nor is a held foot ever displaced further than
+:attr:`~kinodyn.blend.mixer.BlendConfig.max_foot_offset` from where the blended pose puts it, all the
+lock does counted (the root's follow, the IK's offset, the height correction, which is never given up):
+beyond that it follows the pose too, a bound on what the lock may do to the pose.
 
 The two-bone solver is :func:`kinodyn.ik.two_bone_delta` (the analytic one of Daniel Holden's
 Motion-Matching code, skeleton-agnostic). :class:`FootLock` holds the per-character state of the lock
@@ -284,9 +287,10 @@ def _follow_feet(n, root, gp, chain, planted, was_planted, vote, left, foot_xy, 
 
 @numba.njit(cache=True, inline="always")
 def _reach_feet(n, root, gp, chain, planted, foot_xy, release, drop, xy, lift, hips, ankles, reach, need_drop, decay, lim,
-                max_drop, rise, target, need):  # pragma: no cover - compiled
+                max_drop, rise, sx, sy, target, need):  # pragma: no cover - compiled
     """The pelvis of character ``n`` comes down as far as its held feet need (bounded), the held feet stay
-    within ``lim`` of the blend and the legs' reach; every foot's IK target and whether it needs IK."""
+    within ``lim`` of where the blend put them (``sx``, ``sy``: how far the root followed the feet this
+    frame) and within the legs' reach; every foot's IK target and whether it needs IK."""
     # the pelvis comes down (at a bounded speed) when a held foot needs it, and back up smoothly
     dz = max(min(need_drop, max_drop, drop[n] + rise), drop[n] * decay)
     drop[n] = dz
@@ -298,10 +302,16 @@ def _reach_feet(n, root, gp, chain, planted, foot_xy, release, drop, xy, lift, h
         ox = foot_xy[n, s, 0] - xy[n, s, 0]
         oy = foot_xy[n, s, 1] - xy[n, s, 1]
         if planted[n, s]:
-            # a planted foot never strays more than `lim` from where the blend puts it, nor further
-            # than the leg reaches
-            dist = np.sqrt(ox * ox + oy * oy)
-            scale = lim / max(dist, 1e-12) if dist > lim else 1.0
+            # a planted foot is never held more than `lim` from where the blend put it (before the root
+            # followed), its height correction included, nor further than the leg reaches
+            hx, hy = ox + sx, oy + sy
+            dist = np.sqrt(hx * hx + hy * hy)
+            rad = np.sqrt(max(lim * lim - lift[n, s] * lift[n, s], 0.0))
+            moved = dist > rad
+            if moved:
+                ox = hx * rad / dist - sx
+                oy = hy * rad / dist - sy
+            scale = 1.0
             h, a = hips[s], ankles[s]
             e0, e1 = gp[n, a, 0] - gp[n, h, 0], gp[n, a, 1] - gp[n, h, 1]
             e2 = gp[n, a, 2] + dz + lift[n, s] - gp[n, h, 2]
@@ -314,7 +324,7 @@ def _reach_feet(n, root, gp, chain, planted, foot_xy, release, drop, xy, lift, h
             disc = max(b_ * b_ - a_ * c_, 0.0)
             lam = (-b_ + np.sqrt(disc)) / max(a_, 1e-12) if a_ > 1e-12 else 1.0
             scale *= min(max(lam, 0.0), 1.0)
-            if scale < 1.0:
+            if moved or scale < 1.0:
                 foot_xy[n, s, 0] = xy[n, s, 0] + ox * scale
                 foot_xy[n, s, 1] = xy[n, s, 1] + oy * scale
             target[n, s, 0] = foot_xy[n, s, 0]
@@ -353,10 +363,11 @@ def _hold_kernel(root, q, offsets, parents, chain, gr, gp, planted, vote, left, 
         for s in range(2):
             _hold_foot(n, s, gr, gp, planted, was_planted, rest, foot_pt, foot_xy, release_z, leg_joints, n_joints,
                        end_par, end_off, n_ends, decay, xy, lift, px, py, pz)
+        r0x, r0y = root[n, 0], root[n, 1]
         need_drop = _follow_feet(n, root, gp, chain, planted, was_planted, vote, left, foot_xy, release, xy, lift, hips,
                                  ankles, reach, alpha, decay, max_drop)
         _reach_feet(n, root, gp, chain, planted, foot_xy, release, drop, xy, lift, hips, ankles, reach, need_drop, decay,
-                    lim, max_drop, rise, target, need)
+                    lim, max_drop, rise, root[n, 0] - r0x, root[n, 1] - r0y, target, need)
 
 
 class FootLock:

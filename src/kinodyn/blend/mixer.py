@@ -85,9 +85,11 @@ class BlendConfig:
             the meantime; a short halflife keeps the legs natural, a non-zero one keeps the root
             smooth when the support changes foot).
         release_halflife: seconds over which a lifted foot's IK correction fades out.
-        max_foot_offset: metres a planted foot may be held away from where the blended pose puts it;
-            beyond that, or beyond what the leg reaches, it follows the pose (it slides) instead of
-            stretching the leg.
+        max_foot_offset: metres a planted foot may be held away from where the blended pose puts it,
+            all the lock does to it counted (this frame's root follow, the IK's offset, the height
+            correction: the displacement :mod:`~kinodyn.blend.evaluate` reports); beyond that, or beyond
+            what the leg reaches, it follows the pose (it slides) instead of stretching the leg. The
+            height correction is never given up (the foot would go through the floor).
         max_pelvis_drop: metres the pelvis may come down so that a planted foot stays within its leg's
             reach (a straight back leg at push-off); 0 never lowers it.
         root_motion: how the root moves over the floor. ``"clips"``: the weighted mix of the actions'
