@@ -33,7 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ARMS", "SourceContacts", "evaluate", "headline", "measure", "source_contacts", "source_peaks"]
+__all__ = ["ARMS", "CAUSES", "GROUPS", "SourceContacts", "causes_table", "evaluate", "headline", "measure",
+           "sliding_causes", "source_contacts", "source_peaks"]
 
 #: ``(name, synchronize, foot lock)`` of the four arms.
 ARMS = (("plain", False, False), ("sync", True, False), ("lock", False, True), ("sync_lock", True, True))
@@ -49,42 +50,73 @@ class SourceContacts:
     def __init__(self, store, config=None):
         from kinodyn import contacts
 
+        from kinodyn.kinematics import linear_velocity
+
         cfg = config or contacts.ContactConfig()
-        self.labels = []
+        self.labels, self.foot_velocity, self.root_velocity, self.heading = [], [], [], []
         for k in range(len(store)):
-            c = contacts.detect(store.motion(k), cfg)
+            m = store.motion(k)
+            c = contacts.detect(m, cfg)
             self.labels.append(c.as_array())
+            self.foot_velocity.append(np.stack([c.lowest_velocity[s][:, :2] for s in contacts.SIDES], axis=1))
+            self.root_velocity.append(linear_velocity(m.root_pos, m.fps)[:, :2])
+            self.heading.append(np.unwrap(m.ground()[:, 2]))
         self.store = store
 
-    def at(self, clip: int, tau) -> np.ndarray:
-        """``(F, 2)`` labels of clip ``clip`` at clip times ``tau (F,)`` (cyclic clips wrap, others clamp)."""
+    def _frames(self, clip: int, tau) -> np.ndarray:
+        """``(F,)`` fractional frames of clip ``clip`` at clip times ``tau (F,)`` (cyclic clips wrap, others clamp)."""
         st = self.store
-        lab = self.labels[clip]
         dur = float(st.durations[clip])
         tau = np.asarray(tau, dtype=np.float64)
         u = np.mod(tau, dur) if st.is_cyclic[clip] else np.clip(tau, 0.0, dur)
-        i = np.clip(np.rint(u * st.fps[clip]).astype(np.int64), 0, len(lab) - 1)
-        return lab[i]
+        return np.clip(u * st.fps[clip], 0.0, len(self.labels[clip]) - 1)
+
+    def at(self, clip: int, tau) -> np.ndarray:
+        """``(F, 2)`` labels of clip ``clip`` at clip times ``tau (F,)`` (the nearest frame's)."""
+        return self.labels[clip][np.rint(self._frames(clip, tau)).astype(np.int64)]
+
+    def sample(self, values, clip: int, tau) -> np.ndarray:
+        """Per-frame ``values (F_k, ...)`` of clip ``clip`` interpolated at clip times ``tau (F,)``, as the
+        mixer samples the clip (between the two frames around each time)."""
+        x = self._frames(clip, tau)
+        i0 = np.minimum(np.floor(x).astype(np.int64), len(values) - 1)
+        i1 = np.minimum(i0 + 1, len(values) - 1)
+        a = (x - i0).reshape((-1,) + (1,) * (np.ndim(values) - 1))
+        return values[i0] * (1.0 - a) + values[i1] * a
+
+
+def _played(result) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+    """The recorded actions of ``result``: their keys, ``(A, F)`` action times and weights (NaN, 0 where
+    absent), and the ``(F,)`` neutral weight."""
+    rec = result.recording.arrays()
+    n = result.motion.num_frames
+    keys = [k for k in result.actions if k in rec]
+    h = np.array([rec[k][0][:n] for k in keys]).reshape(len(keys), n)
+    w = np.array([rec[k][1][:n] for k in keys]).reshape(len(keys), n)
+    return keys, h, w, np.array(rec["neutral"][:n], dtype=np.float64)
+
+
+def _dominant(w, wn) -> np.ndarray:
+    """``(F,)`` index of the action with the most weight in each frame, -1 where the neutral pose has at
+    least as much (the first of equal actions wins)."""
+    if not len(w):
+        return np.full(len(wn), -1)
+    best = np.argmax(w, axis=0)
+    return np.where(w[best, np.arange(len(wn))] > wn, best, -1)
 
 
 def source_contacts(result, sources: SourceContacts | None = None) -> dict:
     """``{side: (F,) bool}``: frames where the source clip of the heaviest action (or the neutral pose)
     has that foot down, mapped through the record of ``result`` (a :class:`~kinodyn.blend.script.BlendResult`)."""
     src = sources or SourceContacts(result.library)
-    rec = result.recording.arrays()
-    n = result.motion.num_frames
-    best = np.array(rec["neutral"][:n], dtype=np.float64)
-    lab = np.ones((n, 2), dtype=bool)
-    for k, act in result.actions.items():
-        if k not in rec:
-            continue
-        h, w = rec[k]
-        h, w = h[:n], w[:n]
-        on = np.isfinite(h) & (w > best)
-        if not on.any():
-            continue
-        lab[on] = src.at(act.clip, h[on] * act.speed)
-        best = np.where(on, w, best)
+    keys, h, w, wn = _played(result)
+    dom = _dominant(np.where(np.isfinite(h), w, 0.0), wn)
+    lab = np.ones((len(wn), 2), dtype=bool)
+    for a, k in enumerate(keys):
+        on = dom == a
+        if on.any():
+            act = result.actions[k]
+            lab[on] = src.at(act.clip, h[a, on] * act.speed)
     return {"left": lab[:, 0], "right": lab[:, 1]}
 
 
@@ -129,6 +161,103 @@ def _sliding(speed, labels, frames=None) -> float:
     return float(100.0 * v.mean()) if len(v) else 0.0
 
 
+def _rotate(v, angle) -> np.ndarray:
+    """Horizontal vectors ``v (..., 2)`` turned by ``angle (...)`` radians about +Z."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+
+
+def _clip_rates(h, speed, fps: float) -> np.ndarray:
+    """``(F,)`` clip seconds per second of an action played at action times ``h (F,)`` (the time warp
+    times its speed); its nominal ``speed`` where a neighbouring frame is missing."""
+    r = np.full(len(h), np.nan)
+    if len(h) > 1:
+        r = np.gradient(h, 1.0 / fps) * speed
+    return np.where(np.isfinite(r), r, speed)
+
+
+#: The chain of counterfactual foot velocities of :func:`sliding_causes`, in order.
+CAUSES = ("own", "warp", "root", "pose")
+#: Frame groups of :func:`sliding_causes`.
+GROUPS = ("alone", "transition", "swing")
+#: Share of the total weight over which one action plays alone.
+ALONE_WEIGHT = 0.95
+
+
+def sliding_causes(result, sources: SourceContacts | None = None) -> dict:
+    """The sliding on source contacts (:func:`source_contacts`) split into measured causes that add up to it.
+
+    Every planted foot-frame ``i`` (``N`` of them) has the blend's horizontal velocity ``U_i`` of the
+    foot's lowest point; the sliding is ``sum |U_i| / N``. Four counterfactual velocities lead from the
+    heaviest action's source clip to ``U_i``, each changing one thing, turned into the blend's heading:
+
+    - ``A``: the source's own lowest-point velocity at that clip frame, at the action's nominal speed;
+    - ``B``: the same at the clip rate actually played (the time warp's rate times the speed);
+    - ``C``: ``B`` with the source's root velocity replaced by the blend's (root-motion blending);
+    - ``U``: the blend itself (the blended pose moves the foot relative to the root unlike the source).
+
+    ``own = |A|``, ``warp = |B| - |A|``, ``root = |C| - |B|``, ``pose = |U| - |C|`` (each ``/ N``, cm/s):
+    they add up to the sliding exactly, and each may be negative (a cause that cancels another's
+    sliding). Where the neutral pose is heaviest its source is still (``A = B = 0``). The frames are
+    also split: ``alone`` (one weight is at least :data:`ALONE_WEIGHT` of the total), ``transition``
+    (the rest) and, of those, ``swing`` (another action with at least :data:`WARP_WEIGHT` of the weight
+    has that foot up in its source). Returns ``{"sliding_<cause>_cm_s", "sliding_<group>_cm_s" (the
+    group's share of the sum), "sliding_<group>_<cause>_cm_s", "share_<group>" (of the foot-frames),
+    "sliding_cm_s", "planted_frames"}``.
+    """
+    from kinodyn import contacts
+    from kinodyn.kinematics import linear_velocity
+
+    src = sources or SourceContacts(result.library)
+    m = result.motion
+    det = contacts.detect(m, contacts.ContactConfig(floor=0.0))
+    u = np.stack([det.lowest_velocity[s][:, :2] for s in contacts.SIDES], axis=1)  # (F, 2, 2)
+    u_root = linear_velocity(m.root_pos, m.fps)[:, :2]
+    head = m.ground()[:, 2]
+    keys, h, w, wn = _played(result)
+    w = np.where(np.isfinite(h), w, 0.0)
+    dom = _dominant(w, wn)
+    n = m.num_frames
+    a = np.zeros((n, 2, 2))
+    rate = np.zeros(n)
+    foot_src = np.zeros((n, 2, 2))
+    root_src = np.zeros((n, 2))
+    down = np.ones((len(keys), n, 2), dtype=bool)
+    for j, k in enumerate(keys):
+        act = result.actions[k]
+        live = np.isfinite(h[j])
+        down[j, live] = src.at(act.clip, h[j, live] * act.speed)
+        on = dom == j
+        if not on.any():
+            continue
+        tau = h[j, on] * act.speed
+        turn = head[on] - src.sample(src.heading[act.clip], act.clip, tau)
+        foot_src[on] = _rotate(src.sample(src.foot_velocity[act.clip], act.clip, tau), turn[:, None])
+        root_src[on] = _rotate(src.sample(src.root_velocity[act.clip], act.clip, tau), turn)
+        rate[on] = _clip_rates(h[j], act.speed, m.fps)[on]
+        a[on] = foot_src[on] * act.speed
+    b = foot_src * rate[:, None, None]
+    c = b + ((u_root - root_src * rate[:, None])[:, None, :])
+    speeds = [np.linalg.norm(v, axis=-1) for v in (a, b, c, u)]  # (F, 2) each
+    terms = dict(zip(CAUSES, [speeds[0]] + [speeds[i] - speeds[i - 1] for i in (1, 2, 3)]))
+    lab = source_contacts(result, src)
+    planted = np.stack([lab[s] for s in contacts.SIDES], axis=1)
+    total_w = w.sum(axis=0) + wn
+    alone = np.maximum(w.max(axis=0, initial=0.0), wn) >= ALONE_WEIGHT * np.maximum(total_w, 1e-12)
+    others = (w >= WARP_WEIGHT * np.maximum(total_w, 1e-12)) & (np.arange(len(keys))[:, None] != dom[None])
+    swing = (others[..., None] & ~down).any(axis=0) & ~alone[:, None]  # (F, 2)
+    groups = {"alone": planted & alone[:, None], "transition": planted & ~alone[:, None], "swing": planted & swing}
+    count = max(int(planted.sum()), 1)
+    out = {f"sliding_{k}_cm_s": 100.0 * float(t[planted].sum()) / count for k, t in terms.items()}
+    for g, sel in groups.items():
+        out[f"sliding_{g}_cm_s"] = 100.0 * float(speeds[3][sel].sum()) / count
+        out[f"share_{g}"] = float(sel.sum()) / count
+        out.update({f"sliding_{g}_{k}_cm_s": 100.0 * float(t[sel].sum()) / count for k, t in terms.items()})
+    out["sliding_cm_s"] = 100.0 * float(speeds[3][planted].sum()) / count
+    out["planted_frames"] = int(planted.sum())
+    return out
+
+
 def measure(result, sources: SourceContacts | None = None) -> dict:
     """Every figure of one blended script (see the module docstring)."""
     from kinodyn import contacts
@@ -137,6 +266,7 @@ def measure(result, sources: SourceContacts | None = None) -> dict:
     m = result.motion
     det = contacts.detect(m, contacts.ContactConfig(floor=0.0))
     speed = {s: np.linalg.norm(det.lowest_velocity[s][:, :2], axis=1) for s in contacts.SIDES}
+    sources = sources or SourceContacts(result.library)
     lab = source_contacts(result, sources)
     trans = result.transition_mask()
     off = result.recording.lock_offsets()[:m.num_frames]
@@ -167,6 +297,7 @@ def measure(result, sources: SourceContacts | None = None) -> dict:
         "warp_rate_min": float(rates.min()) if len(rates) else 1.0,
         "warp_rate_max": float(rates.max()) if len(rates) else 1.0,
         "frames": int(m.num_frames),
+        "causes": sliding_causes(result, sources),
         "starts": {str(k): [round(a, 4), None if b is None else round(b, 4)] for k, (a, b) in result.starts.items()},
     }
 
@@ -243,4 +374,22 @@ def table(figs: dict, label: str = "") -> str:
     lines.append(f"sources: acc {s['pelvis_acc_source']:.1f}, decel {s['root_decel_source']:.1f} m/s^2; "
                  + ", ".join(f"{k} {figs[k]:.2f}" for k in ("sliding_ratio", "sliding_ratio_sync_only", "lock_p95_ratio",
                                                            "pelvis_acc_ratio", "root_decel_ratio")))
+    return "\n".join(lines + [causes_table(figs)])
+
+
+def causes_table(figs: dict) -> str:
+    """The sliding of every arm split into its causes (:func:`sliding_causes`): contributions in cm/s that
+    add up to ``slide``, by cause and by frame group, the transitions' by cause, and each group's share of
+    the planted foot-frames."""
+    cols = ([(f"sliding_{c}_cm_s", c) for c in CAUSES] + [(f"sliding_{g}_cm_s", g[:5]) for g in GROUPS]
+            + [(f"sliding_transition_{c}_cm_s", f"tr_{c}") for c in CAUSES]
+            + [(f"share_{g}", f"%{g[:5]}") for g in GROUPS])
+    lines = ["sliding by cause (cm/s, adding up to slide): own = the source clip's own, warp = the time warp, "
+             "root = root motion unlike the source's, pose = the blended pose's foot unlike the source's; "
+             "by frames: alone, transition, swing (another weighted action has the foot up)",
+             f"{'arm':<10}{'slide':>8}" + "".join(f"{c:>8}" for _, c in cols)]
+    for arm, f in figs["arms"].items():
+        c = f["causes"]
+        lines.append(f"{arm:<10}{c['sliding_cm_s']:8.2f}" + "".join(
+            f"{100 * c[k]:8.1f}" if k.startswith("share") else f"{c[k]:8.2f}" for k, _ in cols))
     return "\n".join(lines)
