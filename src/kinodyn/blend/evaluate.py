@@ -13,6 +13,12 @@ them defines:
   most weight there (the neutral pose: both feet) has it down. This is neither the lock's weighted vote
   of support phases nor the synchronizer's sequences. The figure is the mean horizontal speed of the
   foot's lowest point over those frames (cm/s), also over the transitions only.
+- **sliding by cause** (:func:`sliding_causes`): that sliding split into contributions that add up to
+  it exactly, each measured against the source clip of the heaviest action at the clip time played:
+  ``own`` (the source foot's own sliding there: real capture slides), ``warp`` (the clip played off its
+  speed by the time warp), ``root`` (the blended root moving unlike the source's root), ``pose`` (the
+  blended pose moving the foot relative to the root unlike the source); and by frames: one action
+  alone, transitions, and of those the ``swing`` frames (another weighted action has that foot up).
 - **sliding on detected contacts**: :func:`kinodyn.contacts.sliding` on contacts detected on the
   result (it cannot see a foot sliding faster than the detector's speed threshold).
 - **lock displacement**: how far the lock holds each held foot from where the blended pose puts it
