@@ -118,6 +118,21 @@ def test_swing_frames_are_transitions_where_another_clip_lifts_the_foot(walk):
     assert 0.0 < c["share_swing"] < c["share_transition"] < 1.0
 
 
+def test_weight_shifting_between_feet_at_different_places_shows_up_as_weights(walk):
+    """Weight ramping between two copies of the walk in step moves no foot (their feet are at the same
+    places); ramping from the walk into the run, whose feet stand elsewhere from the root, does."""
+    twins = _play([{"clip": "walk", "start": 0.0, "stop": 1.5, "priority": 1, "ramp_out": 0.5},
+                   {"clip": "walk", "start": 0.0, "priority": 1, "key": "twin"}])
+    c = sliding_causes(twins)
+    assert c["share_transition"] > 0.3 and c["sliding_weights_cm_s"] == pytest.approx(0.0, abs=1e-9)
+    assert sliding_causes(walk)["sliding_weights_cm_s"] == 0.0
+    into_run = _play([{"clip": "walk", "start": 0.0, "stop": 2.0, "priority": 1},
+                      {"clip": "run", "start": 1.8, "priority": 1}], ramp=0.5, duration=None)
+    c = sliding_causes(into_run)
+    assert c["sliding_transition_weights_cm_s"] > 1.0
+    assert c["sliding_transition_weights_cm_s"] > 2 * abs(c["sliding_alone_weights_cm_s"]), c
+
+
 def test_measure_carries_the_causes(walk):
     f = measure(walk)
     assert f["causes"] == sliding_causes(walk)

@@ -15,8 +15,8 @@ Measures, on the built-in clips:
   ``lock_p95_cm``, ``lock_max_cm``, ``lock_p95_ratio``, ``pelvis_acc_ratio``, ``root_decel_ratio``
   (real-clip scripts prefixed by their name); beside them, the plain and sync arms' sliding split into
   its causes (:func:`kinodyn.blend.evaluate.sliding_causes`: ``sync_sliding_own_cm_s``,
-  ``sync_sliding_warp_cm_s``, ``sync_sliding_root_cm_s``, ``sync_sliding_pose_cm_s``,
-  ``sync_sliding_transition_cm_s``, ``sync_share_transition``, ...).
+  ``sync_sliding_warp_cm_s``, ``sync_sliding_weights_cm_s``, ``sync_sliding_root_cm_s``,
+  ``sync_sliding_pose_cm_s``, ``sync_sliding_transition_cm_s``, ``sync_share_transition``, ...).
 
 Everything runs in this process on one thread (numba kernels included); absolute times are noisy, the
 ratio against the unsynchronized baseline measured in the same run is the robust figure.
@@ -185,8 +185,9 @@ def _run(quick: bool) -> BenchResult:
                             "keys without a prefix are the built-in figure 12/13 script")
     res.notes["sliding_causes"] = ("<arm>_sliding_<cause>_cm_s (plain and sync arms) add up to <arm>_sliding_cm_s: "
                                    "own = the source clip's own foot speed at the frames played, warp = the time "
-                                   "warp's change of it, root = the blended root moving unlike the source's, pose = "
-                                   "the blended pose moving the foot unlike the source; <arm>_sliding_<group>_cm_s "
+                                   "warp's change of it, weights = weight shifting between clips whose feet stand at "
+                                   "different places from the root, root = the blended root moving unlike the "
+                                   "source's, pose = the rest of the blended pose moving the foot; <arm>_sliding_<group>_cm_s "
                                    "and <arm>_share_<group> split the same sum and the planted foot-frames into alone "
                                    "(one action has 95% of the weight), transition and swing (transition frames where "
                                    "another weighted action has that foot up)")

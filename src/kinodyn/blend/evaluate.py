@@ -16,7 +16,8 @@ them defines:
 - **sliding by cause** (:func:`sliding_causes`): that sliding split into contributions that add up to
   it exactly, each measured against the source clip of the heaviest action at the clip time played:
   ``own`` (the source foot's own sliding there: real capture slides), ``warp`` (the clip played off its
-  speed by the time warp), ``root`` (the blended root moving unlike the source's root), ``pose`` (the
+  speed by the time warp), ``weights`` (weight moving between clips whose feet stand at different places
+  from the root), ``root`` (the blended root moving unlike the source's root), ``pose`` (the rest of the
   blended pose moving the foot relative to the root unlike the source); and by frames: one action
   alone, transitions, and of those the ``swing`` frames (another weighted action has that foot up).
 - **sliding on detected contacts**: :func:`kinodyn.contacts.sliding` on contacts detected on the
@@ -59,13 +60,14 @@ class SourceContacts:
         from kinodyn.kinematics import linear_velocity
 
         cfg = config or contacts.ContactConfig()
-        self.labels, self.foot_velocity, self.root_velocity, self.heading = [], [], [], []
+        self.labels, self.foot_velocity, self.root_velocity, self.heading, self.foot_offset = [], [], [], [], []
         for k in range(len(store)):
             m = store.motion(k)
             c = contacts.detect(m, cfg)
             self.labels.append(c.as_array())
             self.foot_velocity.append(np.stack([c.lowest_velocity[s][:, :2] for s in contacts.SIDES], axis=1))
             self.root_velocity.append(linear_velocity(m.root_pos, m.fps)[:, :2])
+            self.foot_offset.append(np.stack([c.lowest[s][:, :2] - m.root_pos[:, :2] for s in contacts.SIDES], axis=1))
             self.heading.append(np.unwrap(m.ground()[:, 2]))
         self.store = store
 
@@ -183,33 +185,87 @@ def _clip_rates(h, speed, fps: float) -> np.ndarray:
 
 
 #: The chain of counterfactual foot velocities of :func:`sliding_causes`, in order.
-CAUSES = ("own", "warp", "root", "pose")
+CAUSES = ("own", "warp", "weights", "root", "pose")
 #: Frame groups of :func:`sliding_causes`.
 GROUPS = ("alone", "transition", "swing")
 #: Share of the total weight over which one action plays alone.
 ALONE_WEIGHT = 0.95
 
 
+def _neutral_source(result) -> tuple[int, float]:
+    """Clip and clip time of the neutral pose the mixer blends (:class:`~kinodyn.blend.mixer.Mixer`): the
+    script's neutral clip or ``idle`` at time 0; else the first clip's first double-support midpoint."""
+    from kinodyn.phases import DS
+
+    lib = result.library
+    name = result.script.neutral if result.script.neutral is not None else ("idle" if "idle" in lib.names else None)
+    if name is not None:
+        return lib.index(name), 0.0
+    from kinodyn.blend.library import sequences
+
+    seq = sequences(lib)[0]
+    ds = [i for i, p in enumerate(seq.phases) if p == DS]
+    return 0, 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
+
+
+def _source_side(result, src: SourceContacts, keys, h, w, dom, head):
+    """What the sources bring at each frame, turned into the blend's heading: the heaviest action's
+    lowest-point and root velocities per clip second ``(F, 2, 2)``, ``(F, 2)``, its clip rate and nominal
+    speed ``(F,)``, the ``(K + 1, F, 2, 2)`` foot offsets from the root of every action and (last) the
+    neutral pose (NaN where an action is not playing), and ``(K, F, 2)`` which feet each action's
+    source has down."""
+    n = len(dom)
+    foot, root, rate, nominal = np.zeros((n, 2, 2)), np.zeros((n, 2)), np.zeros(n), np.zeros(n)
+    offset = np.full((len(keys) + 1, n, 2, 2), np.nan)
+    down = np.ones((len(keys), n, 2), dtype=bool)
+    nc, nt = _neutral_source(result)
+    offset[-1] = _rotate(src.sample(src.foot_offset[nc], nc, np.full(n, nt)),
+                         (head - src.sample(src.heading[nc], nc, np.full(n, nt)))[:, None])
+    for j, k in enumerate(keys):
+        act = result.actions[k]
+        live = np.isfinite(h[j])
+        tau = h[j, live] * act.speed
+        down[j, live] = src.at(act.clip, tau)
+        turn = head[live] - src.sample(src.heading[act.clip], act.clip, tau)
+        offset[j, live] = _rotate(src.sample(src.foot_offset[act.clip], act.clip, tau), turn[:, None])
+        on = (dom == j)[live]
+        if on.any():
+            at = np.nonzero(live)[0][on]
+            foot[at] = _rotate(src.sample(src.foot_velocity[act.clip], act.clip, tau[on]), turn[on, None])
+            root[at] = _rotate(src.sample(src.root_velocity[act.clip], act.clip, tau[on]), turn[on])
+            rate[at] = _clip_rates(h[j], act.speed, result.motion.fps)[at]
+            nominal[at] = act.speed
+    return foot, root, rate, nominal, offset, down
+
+
 def sliding_causes(result, sources: SourceContacts | None = None) -> dict:
     """The sliding on source contacts (:func:`source_contacts`) split into measured causes that add up to it.
 
     Every planted foot-frame ``i`` (``N`` of them) has the blend's horizontal velocity ``U_i`` of the
-    foot's lowest point; the sliding is ``sum |U_i| / N``. Four counterfactual velocities lead from the
-    heaviest action's source clip to ``U_i``, each changing one thing, turned into the blend's heading:
+    foot's lowest point; the sliding is ``sum |U_i| / N``. Counterfactual velocities lead from the
+    heaviest action's source clip (sampled as the mixer samples it, turned into the blend's heading) to
+    ``U_i``, each step changing one thing:
 
-    - ``A``: the source's own lowest-point velocity at that clip frame, at the action's nominal speed;
+    - ``A``: the source's own lowest-point velocity at that clip time, at the action's nominal speed;
     - ``B``: the same at the clip rate actually played (the time warp's rate times the speed);
-    - ``C``: ``B`` with the source's root velocity replaced by the blend's (root-motion blending);
-    - ``U``: the blend itself (the blended pose moves the foot relative to the root unlike the source).
+    - ``C``: ``B`` plus the weight shifts between feet at different places: ``sum_j dŵ_j/dt (o_j - o)``
+      over the actions and the neutral pose, ``ŵ`` the weights over their total and ``o`` a source's
+      lowest foot point relative to its root (``o`` the heaviest's): how far a linear mix of the
+      sources' feet would move the foot while the weights ramp;
+    - ``D``: ``C`` with the source's root velocity replaced by the blend's (the mix of the actions' root
+      displacements and the support correction of ``root_motion="support"``: negative where it takes
+      back the weight shifts or a clip's own sliding);
+    - ``U``: the blend itself (the rest of how the blended pose moves the foot under the root unlike the
+      source: other clips' moving feet, the rotation blend, and in the arms with the lock, the lock).
 
-    ``own = |A|``, ``warp = |B| - |A|``, ``root = |C| - |B|``, ``pose = |U| - |C|`` (each ``/ N``, cm/s):
-    they add up to the sliding exactly, and each may be negative (a cause that cancels another's
-    sliding). Where the neutral pose is heaviest its source is still (``A = B = 0``). The frames are
-    also split: ``alone`` (one weight is at least :data:`ALONE_WEIGHT` of the total), ``transition``
-    (the rest) and, of those, ``swing`` (another action with at least :data:`WARP_WEIGHT` of the weight
-    has that foot up in its source). Returns ``{"sliding_<cause>_cm_s", "sliding_<group>_cm_s" (the
-    group's share of the sum), "sliding_<group>_<cause>_cm_s", "share_<group>" (of the foot-frames),
-    "sliding_cm_s", "planted_frames"}``.
+    ``own = |A|``, ``warp = |B| - |A|``, ``weights = |C| - |B|``, ``root = |D| - |C|``, ``pose = |U| - |D|``
+    (each summed and divided by ``N``, cm/s): they add up to the sliding exactly; a negative one cancels
+    sliding another brings. Where the neutral pose is heaviest its source is still (``A = B = 0``).
+    The same sum is split by frames: ``alone`` (one weight is at least :data:`ALONE_WEIGHT` of the
+    total), ``transition`` (the rest) and, of those, ``swing`` (another action with at least
+    :data:`WARP_WEIGHT` of the weight has that foot up in its source). Returns
+    ``{"sliding_<cause>_cm_s", "sliding_<group>_cm_s", "sliding_<group>_<cause>_cm_s", "share_<group>"
+    (of the foot-frames), "sliding_cm_s", "planted_frames"}``.
     """
     from kinodyn import contacts
     from kinodyn.kinematics import linear_velocity
@@ -218,48 +274,33 @@ def sliding_causes(result, sources: SourceContacts | None = None) -> dict:
     m = result.motion
     det = contacts.detect(m, contacts.ContactConfig(floor=0.0))
     u = np.stack([det.lowest_velocity[s][:, :2] for s in contacts.SIDES], axis=1)  # (F, 2, 2)
-    u_root = linear_velocity(m.root_pos, m.fps)[:, :2]
-    head = m.ground()[:, 2]
     keys, h, w, wn = _played(result)
     w = np.where(np.isfinite(h), w, 0.0)
     dom = _dominant(w, wn)
-    n = m.num_frames
-    a = np.zeros((n, 2, 2))
-    rate = np.zeros(n)
-    foot_src = np.zeros((n, 2, 2))
-    root_src = np.zeros((n, 2))
-    down = np.ones((len(keys), n, 2), dtype=bool)
-    for j, k in enumerate(keys):
-        act = result.actions[k]
-        live = np.isfinite(h[j])
-        down[j, live] = src.at(act.clip, h[j, live] * act.speed)
-        on = dom == j
-        if not on.any():
-            continue
-        tau = h[j, on] * act.speed
-        turn = head[on] - src.sample(src.heading[act.clip], act.clip, tau)
-        foot_src[on] = _rotate(src.sample(src.foot_velocity[act.clip], act.clip, tau), turn[:, None])
-        root_src[on] = _rotate(src.sample(src.root_velocity[act.clip], act.clip, tau), turn)
-        rate[on] = _clip_rates(h[j], act.speed, m.fps)[on]
-        a[on] = foot_src[on] * act.speed
-    b = foot_src * rate[:, None, None]
-    c = b + ((u_root - root_src * rate[:, None])[:, None, :])
-    speeds = [np.linalg.norm(v, axis=-1) for v in (a, b, c, u)]  # (F, 2) each
-    terms = dict(zip(CAUSES, [speeds[0]] + [speeds[i] - speeds[i - 1] for i in (1, 2, 3)]))
+    foot, root, rate, nominal, offset, down = _source_side(result, src, keys, h, w, dom, m.ground()[:, 2])
+    total_w = np.maximum(w.sum(axis=0) + wn, 1e-12)
+    shares = np.concatenate([w, wn[None]]) / total_w
+    dshare = np.gradient(shares, 1.0 / m.fps, axis=1) if m.num_frames > 1 else np.zeros_like(shares)
+    apart = np.nan_to_num(offset - offset[dom, np.arange(len(dom))][None])  # from the heaviest's foot
+    a = foot * nominal[:, None, None]
+    b = foot * rate[:, None, None]
+    c = b + (dshare[..., None, None] * apart).sum(axis=0)
+    d = c + (linear_velocity(m.root_pos, m.fps)[:, :2] - root * rate[:, None])[:, None, :]
+    speeds = [np.linalg.norm(v, axis=-1) for v in (a, b, c, d, u)]  # (F, 2) each
+    terms = dict(zip(CAUSES, [speeds[0]] + [speeds[i] - speeds[i - 1] for i in range(1, len(speeds))]))
     lab = source_contacts(result, src)
     planted = np.stack([lab[s] for s in contacts.SIDES], axis=1)
-    total_w = w.sum(axis=0) + wn
-    alone = np.maximum(w.max(axis=0, initial=0.0), wn) >= ALONE_WEIGHT * np.maximum(total_w, 1e-12)
-    others = (w >= WARP_WEIGHT * np.maximum(total_w, 1e-12)) & (np.arange(len(keys))[:, None] != dom[None])
+    alone = np.maximum(w.max(axis=0, initial=0.0), wn) >= ALONE_WEIGHT * total_w
+    others = (w >= WARP_WEIGHT * total_w) & (np.arange(len(keys))[:, None] != dom[None])
     swing = (others[..., None] & ~down).any(axis=0) & ~alone[:, None]  # (F, 2)
     groups = {"alone": planted & alone[:, None], "transition": planted & ~alone[:, None], "swing": planted & swing}
     count = max(int(planted.sum()), 1)
     out = {f"sliding_{k}_cm_s": 100.0 * float(t[planted].sum()) / count for k, t in terms.items()}
     for g, sel in groups.items():
-        out[f"sliding_{g}_cm_s"] = 100.0 * float(speeds[3][sel].sum()) / count
+        out[f"sliding_{g}_cm_s"] = 100.0 * float(speeds[-1][sel].sum()) / count
         out[f"share_{g}"] = float(sel.sum()) / count
         out.update({f"sliding_{g}_{k}_cm_s": 100.0 * float(t[sel].sum()) / count for k, t in terms.items()})
-    out["sliding_cm_s"] = 100.0 * float(speeds[3][planted].sum()) / count
+    out["sliding_cm_s"] = 100.0 * float(speeds[-1][planted].sum()) / count
     out["planted_frames"] = int(planted.sum())
     return out
 
@@ -391,7 +432,8 @@ def causes_table(figs: dict) -> str:
             + [(f"sliding_transition_{c}_cm_s", f"tr_{c}") for c in CAUSES]
             + [(f"share_{g}", f"%{g[:5]}") for g in GROUPS])
     lines = ["sliding by cause (cm/s, adding up to slide): own = the source clip's own, warp = the time warp, "
-             "root = root motion unlike the source's, pose = the blended pose's foot unlike the source's; "
+             "weights = weight shifting between feet at different places, root = root motion unlike the "
+             "source's, pose = the rest of the blended pose's foot motion; "
              "by frames: alone, transition, swing (another weighted action has the foot up)",
              f"{'arm':<10}{'slide':>8}" + "".join(f"{c:>8}" for _, c in cols)]
     for arm, f in figs["arms"].items():
