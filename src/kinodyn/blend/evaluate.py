@@ -67,7 +67,8 @@ class SourceContacts:
             self.labels.append(c.as_array())
             self.foot_velocity.append(np.stack([c.lowest_velocity[s][:, :2] for s in contacts.SIDES], axis=1))
             self.root_velocity.append(linear_velocity(m.root_pos, m.fps)[:, :2])
-            self.foot_offset.append(np.stack([c.lowest[s][:, :2] - m.root_pos[:, :2] for s in contacts.SIDES], axis=1))
+            pts = contacts.foot_points(m)
+            self.foot_offset.append([pts[s][..., :2] - m.root_pos[:, None, :2] for s in contacts.SIDES])
             self.heading.append(np.unwrap(m.ground()[:, 2]))
         self.store = store
 
@@ -208,26 +209,33 @@ def _neutral_source(result) -> tuple[int, float]:
     return 0, 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
 
 
-def _source_side(result, src: SourceContacts, keys, h, w, dom, head):
+def _offsets(src: SourceContacts, clip: int, tau, point, turn) -> np.ndarray:
+    """``(F, 2, 2)`` horizontal offsets from the root of foot points ``point (F, 2)`` (left, right) of clip
+    ``clip`` at clip times ``tau (F,)``, turned by ``turn (F,)``."""
+    rows = np.arange(len(tau))
+    out = [src.sample(src.foot_offset[clip][s], clip, tau)[rows, point[:, s]] for s in range(2)]
+    return _rotate(np.stack(out, axis=1), turn[:, None])
+
+
+def _source_side(result, src: SourceContacts, keys, h, dom, head, point):
     """What the sources bring at each frame, turned into the blend's heading: the heaviest action's
     lowest-point and root velocities per clip second ``(F, 2, 2)``, ``(F, 2)``, its clip rate and nominal
-    speed ``(F,)``, the ``(K + 1, F, 2, 2)`` foot offsets from the root of every action and (last) the
-    neutral pose (NaN where an action is not playing), and ``(K, F, 2)`` which feet each action's
-    source has down."""
+    speed ``(F,)``, the ``(K + 1, F, 2, 2)`` offsets from the root of the foot point ``point (F, 2)``
+    (the blend's lowest) of every action and (last) the neutral pose (NaN where an action is not
+    playing), and ``(K, F, 2)`` which feet each action's source has down."""
     n = len(dom)
     foot, root, rate, nominal = np.zeros((n, 2, 2)), np.zeros((n, 2)), np.zeros(n), np.zeros(n)
     offset = np.full((len(keys) + 1, n, 2, 2), np.nan)
     down = np.ones((len(keys), n, 2), dtype=bool)
     nc, nt = _neutral_source(result)
-    offset[-1] = _rotate(src.sample(src.foot_offset[nc], nc, np.full(n, nt)),
-                         (head - src.sample(src.heading[nc], nc, np.full(n, nt)))[:, None])
+    offset[-1] = _offsets(src, nc, np.full(n, nt), point, head - src.sample(src.heading[nc], nc, np.full(n, nt)))
     for j, k in enumerate(keys):
         act = result.actions[k]
         live = np.isfinite(h[j])
         tau = h[j, live] * act.speed
         down[j, live] = src.at(act.clip, tau)
         turn = head[live] - src.sample(src.heading[act.clip], act.clip, tau)
-        offset[j, live] = _rotate(src.sample(src.foot_offset[act.clip], act.clip, tau), turn[:, None])
+        offset[j, live] = _offsets(src, act.clip, tau, point[live], turn)
         on = (dom == j)[live]
         if on.any():
             at = np.nonzero(live)[0][on]
@@ -249,9 +257,9 @@ def sliding_causes(result, sources: SourceContacts | None = None) -> dict:
     - ``A``: the source's own lowest-point velocity at that clip time, at the action's nominal speed;
     - ``B``: the same at the clip rate actually played (the time warp's rate times the speed);
     - ``C``: ``B`` plus the weight shifts between feet at different places: ``sum_j dŵ_j/dt (o_j - o)``
-      over the actions and the neutral pose, ``ŵ`` the weights over their total and ``o`` a source's
-      lowest foot point relative to its root (``o`` the heaviest's): how far a linear mix of the
-      sources' feet would move the foot while the weights ramp;
+      over the actions and the neutral pose, ``ŵ`` the weights over their total and ``o`` where a
+      source puts the blend's lowest foot point relative to its root (``o`` the heaviest's): how far a
+      linear mix of the sources' feet would move the foot while the weights ramp;
     - ``D``: ``C`` with the source's root velocity replaced by the blend's (the mix of the actions' root
       displacements and the support correction of ``root_motion="support"``: negative where it takes
       back the weight shifts or a clip's own sliding);
@@ -277,7 +285,9 @@ def sliding_causes(result, sources: SourceContacts | None = None) -> dict:
     keys, h, w, wn = _played(result)
     w = np.where(np.isfinite(h), w, 0.0)
     dom = _dominant(w, wn)
-    foot, root, rate, nominal, offset, down = _source_side(result, src, keys, h, w, dom, m.ground()[:, 2])
+    pts = contacts.foot_points(m)
+    point = np.stack([pts[s][..., 2].argmin(axis=1) for s in contacts.SIDES], axis=1)  # the lowest, as ``det``'s
+    foot, root, rate, nominal, offset, down = _source_side(result, src, keys, h, dom, m.ground()[:, 2], point)
     total_w = np.maximum(w.sum(axis=0) + wn, 1e-12)
     shares = np.concatenate([w, wn[None]]) / total_w
     dshare = np.gradient(shares, 1.0 / m.fps, axis=1) if m.num_frames > 1 else np.zeros_like(shares)
