@@ -56,7 +56,6 @@ class SourceContacts:
 
     def __init__(self, store, config=None):
         from kinodyn import contacts
-
         from kinodyn.kinematics import linear_velocity
 
         cfg = config or contacts.ContactConfig()
@@ -196,14 +195,13 @@ ALONE_WEIGHT = 0.95
 def _neutral_source(result) -> tuple[int, float]:
     """Clip and clip time of the neutral pose the mixer blends (:class:`~kinodyn.blend.mixer.Mixer`): the
     script's neutral clip or ``idle`` at time 0; else the first clip's first double-support midpoint."""
+    from kinodyn.blend.library import sequences
     from kinodyn.phases import DS
 
     lib = result.library
     name = result.script.neutral if result.script.neutral is not None else ("idle" if "idle" in lib.names else None)
     if name is not None:
         return lib.index(name), 0.0
-    from kinodyn.blend.library import sequences
-
     seq = sequences(lib)[0]
     ds = [i for i, p in enumerate(seq.phases) if p == DS]
     return 0, 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
@@ -286,7 +284,7 @@ def sliding_causes(result, sources: SourceContacts | None = None) -> dict:
     w = np.where(np.isfinite(h), w, 0.0)
     dom = _dominant(w, wn)
     pts = contacts.foot_points(m)
-    point = np.stack([pts[s][..., 2].argmin(axis=1) for s in contacts.SIDES], axis=1)  # the lowest, as ``det``'s
+    point = np.stack([pts[s][..., 2].argmin(axis=1) for s in contacts.SIDES], axis=1)  # ``det``'s lowest
     foot, root, rate, nominal, offset, down = _source_side(result, src, keys, h, dom, m.ground()[:, 2], point)
     total_w = np.maximum(w.sum(axis=0) + wn, 1e-12)
     shares = np.concatenate([w, wn[None]]) / total_w
@@ -441,10 +439,10 @@ def causes_table(figs: dict) -> str:
     cols = ([(f"sliding_{c}_cm_s", c) for c in CAUSES] + [(f"sliding_{g}_cm_s", g[:5]) for g in GROUPS]
             + [(f"sliding_transition_{c}_cm_s", f"tr_{c}") for c in CAUSES]
             + [(f"share_{g}", f"%{g[:5]}") for g in GROUPS])
-    lines = ["sliding by cause (cm/s, adding up to slide): own = the source clip's own, warp = the time warp, "
-             "weights = weight shifting between feet at different places, root = root motion unlike the "
-             "source's, pose = the rest of the blended pose's foot motion; "
-             "by frames: alone, transition, swing (another weighted action has the foot up)",
+    lines = [("sliding by cause (cm/s, adding up to slide): own = the source clip's own, warp = the time warp, "
+              "weights = weight shifting between feet at different places, root = root motion unlike the "
+              "source's, pose = the rest of the blended pose's foot motion; "
+              "by frames: alone, transition, swing (another weighted action has the foot up)"),
              f"{'arm':<10}{'slide':>8}" + "".join(f"{c:>8}" for _, c in cols)]
     for arm, f in figs["arms"].items():
         c = f["causes"]
