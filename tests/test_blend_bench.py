@@ -45,3 +45,24 @@ def test_characters_at_60fps_is_timed_at_the_count_it_reports():
     budget = 5.0
     r = characters_at_60fps(_library(), 0.1, start=8, budget_ms=budget)
     assert r["characters"] > 0 and r["frame_ms"] <= budget
+
+
+def test_the_bench_reports_the_sliding_causes_beside_the_headline():
+    """The plain and sync arms' sliding causes go into the benchmark's figures under their own keys, the
+    existing keys unchanged, and add up to the arm's sliding there too."""
+    from kinodyn.bench import BenchResult
+    from kinodyn.blend.bench import HEADLINE, add_sliding
+    from kinodyn.blend.evaluate import CAUSES, evaluate
+    from kinodyn.blend.transitions import transition_script
+
+    res = BenchResult("blend")
+    add_sliding(res, {"builtin": evaluate(transition_script())})
+    assert all(k in res.metrics for k in HEADLINE)
+    b = res.baseline
+    for arm in ("plain", "sync"):
+        parts = [b[f"{arm}_sliding_{c}_cm_s"] for c in CAUSES]
+        assert sum(parts) == pytest.approx(b[f"{arm}_sliding_cm_s"], abs=1e-9)
+        assert b[f"{arm}_sliding_transition_cm_s"] + b[f"{arm}_sliding_alone_cm_s"] == pytest.approx(
+            b[f"{arm}_sliding_cm_s"], abs=1e-9)
+        assert 0.0 < b[f"{arm}_share_transition"] < 1.0
+    assert "lock_sliding_own_cm_s" not in b  # the causes of the two arms without the lock only

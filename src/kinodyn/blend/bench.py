@@ -13,7 +13,10 @@ Measures, on the built-in clips:
   real-clip scripts (:mod:`kinodyn.blend.realclips`, when the motion capture is present): ``sliding_ratio``
   (sync + lock over lock alone), ``sliding_ratio_sync_only`` (sync over plain), ``sliding_cm_s_synced``,
   ``lock_p95_cm``, ``lock_max_cm``, ``lock_p95_ratio``, ``pelvis_acc_ratio``, ``root_decel_ratio``
-  (real-clip scripts prefixed by their name).
+  (real-clip scripts prefixed by their name); beside them, the plain and sync arms' sliding split into
+  its causes (:func:`kinodyn.blend.evaluate.sliding_causes`: ``sync_sliding_own_cm_s``,
+  ``sync_sliding_warp_cm_s``, ``sync_sliding_weights_cm_s``, ``sync_sliding_root_cm_s``,
+  ``sync_sliding_pose_cm_s``, ``sync_sliding_transition_cm_s``, ``sync_share_transition``, ...).
 
 Everything runs in this process on one thread (numba kernels included); absolute times are noisy, the
 ratio against the unsynchronized baseline measured in the same run is the robust figure.
@@ -27,7 +30,7 @@ import numpy as np
 
 from kinodyn.bench import BenchResult, one_numba_thread
 
-__all__ = ["characters_at_60fps", "crowd_benchmark", "run", "sliding_benchmark"]
+__all__ = ["add_sliding", "characters_at_60fps", "crowd_benchmark", "run", "sliding_benchmark"]
 
 
 def _library():
@@ -128,6 +131,25 @@ HEADLINE = ("sliding_ratio", "sliding_ratio_sync_only", "sliding_cm_s_synced", "
 _UNITS = {"sliding_cm_s_synced": "cm/s", "lock_p95_cm": "cm", "lock_max_cm": "cm"}
 
 
+def add_sliding(res: BenchResult, figs: dict) -> None:
+    """Add the four-arm figures of every script (:func:`sliding_benchmark`) to ``res``: the headline keys
+    as metrics, each arm's figures and the plain and sync arms' sliding causes as baseline figures."""
+    for script, f in figs.items():
+        prefix = "" if script == "builtin" else f"{script}_"
+        for k in HEADLINE:
+            res.add(prefix + k, f[k], _UNITS.get(k, "x"))
+        for arm, a in f["arms"].items():
+            for k in ("sliding_cm_s", "detected_sliding_cm_s", "lock_p95_cm", "lock_max_cm", "err_frames",
+                      "pelvis_acc", "root_decel", "lowest_foot_cm", "warp_rate_min", "warp_rate_max"):
+                res.baseline[f"{prefix}{arm}_{k}"] = a[k]
+        for arm in ("plain", "sync"):
+            for k, v in f["arms"][arm]["causes"].items():
+                if k.startswith(("sliding_", "share_")) and k != "sliding_cm_s":
+                    res.baseline[f"{prefix}{arm}_{k}"] = v
+        res.baseline[f"{prefix}source_pelvis_acc"] = f["arms"]["sync_lock"]["pelvis_acc_source"]
+        res.baseline[f"{prefix}source_root_decel"] = f["arms"]["sync_lock"]["root_decel_source"]
+
+
 def run(quick: bool = False, progress=None) -> BenchResult:
     """The blend benchmark on one thread (the compiled kernels' thread count is restored after)."""
     with one_numba_thread():
@@ -152,16 +174,7 @@ def _run(quick: bool) -> BenchResult:
     res.add("characters_at_60fps", fit["characters"], "characters")
     res.add("frame_ms_at_characters_at_60fps", fit["frame_ms"], "ms")
     figs = sliding_benchmark()
-    for script, f in figs.items():
-        prefix = "" if script == "builtin" else f"{script}_"
-        for k in HEADLINE:
-            res.add(prefix + k, f[k], _UNITS.get(k, "x"))
-        for arm, a in f["arms"].items():
-            for k in ("sliding_cm_s", "detected_sliding_cm_s", "lock_p95_cm", "lock_max_cm", "err_frames",
-                      "pelvis_acc", "root_decel", "lowest_foot_cm", "warp_rate_min", "warp_rate_max"):
-                res.baseline[f"{prefix}{arm}_{k}"] = a[k]
-        res.baseline[f"{prefix}source_pelvis_acc"] = f["arms"]["sync_lock"]["pelvis_acc_source"]
-        res.baseline[f"{prefix}source_root_decel"] = f["arms"]["sync_lock"]["root_decel_source"]
+    add_sliding(res, figs)
     res.add("err_frames_synced", figs["builtin"]["arms"]["sync_lock"]["err_frames"], "frames")
     res.notes["sliding"] = ("four arms on the same script (plain, sync, lock, sync_lock: synchronization and the "
                             "foot lock on or off, everything else equal); sliding is the horizontal speed of the "
@@ -170,6 +183,14 @@ def _run(quick: bool) -> BenchResult:
                             "sliding_ratio = lock / sync_lock, sliding_ratio_sync_only = plain / sync, "
                             "lock_p95_ratio = lock / sync_lock of the held feet's distance from the blended pose; "
                             "keys without a prefix are the built-in figure 12/13 script")
+    res.notes["sliding_causes"] = ("<arm>_sliding_<cause>_cm_s (plain and sync arms) add up to <arm>_sliding_cm_s: "
+                                   "own = the source clip's own foot speed at the frames played, warp = the time "
+                                   "warp's change of it, weights = weight shifting between clips whose feet stand at "
+                                   "different places from the root, root = the blended root moving unlike the "
+                                   "source's, pose = the rest of the blended pose moving the foot; <arm>_sliding_<group>_cm_s "
+                                   "and <arm>_share_<group> split the same sum and the planted foot-frames into alone "
+                                   "(one action has 95% of the weight), transition and swing (transition frames where "
+                                   "another weighted action has that foot up)")
     res.notes["speed"] = (f"{n} characters, 3 actions each at one priority, one thread; updates are the "
                           "Python step entries (sync + durations + warp); characters_at_60fps is measured at "
                           "that count")

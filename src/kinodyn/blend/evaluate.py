@@ -13,6 +13,13 @@ them defines:
   most weight there (the neutral pose: both feet) has it down. This is neither the lock's weighted vote
   of support phases nor the synchronizer's sequences. The figure is the mean horizontal speed of the
   foot's lowest point over those frames (cm/s), also over the transitions only.
+- **sliding by cause** (:func:`sliding_causes`): that sliding split into contributions that add up to
+  it exactly, each measured against the source clip of the heaviest action at the clip time played:
+  ``own`` (the source foot's own sliding there: real capture slides), ``warp`` (the clip played off its
+  speed by the time warp), ``weights`` (weight moving between clips whose feet stand at different places
+  from the root), ``root`` (the blended root moving unlike the source's root), ``pose`` (the rest of the
+  blended pose moving the foot relative to the root unlike the source); and by frames: one action
+  alone, transitions, and of those the ``swing`` frames (another weighted action has that foot up).
 - **sliding on detected contacts**: :func:`kinodyn.contacts.sliding` on contacts detected on the
   result (it cannot see a foot sliding faster than the detector's speed threshold).
 - **lock displacement**: how far the lock holds each held foot from where the blended pose puts it
@@ -34,8 +41,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ARMS", "SourceContacts", "evaluate", "headline", "lock_events", "measure", "source_contacts",
-           "source_peaks"]
+__all__ = ["ARMS", "CAUSES", "GROUPS", "SourceContacts", "causes_table", "evaluate", "headline", "lock_events",
+           "measure", "sliding_causes", "source_contacts", "source_peaks"]
 
 #: ``(name, synchronize, foot lock)`` of the four arms.
 ARMS = (("plain", False, False), ("sync", True, False), ("lock", False, True), ("sync_lock", True, True))
@@ -50,43 +57,75 @@ class SourceContacts:
 
     def __init__(self, store, config=None):
         from kinodyn import contacts
+        from kinodyn.kinematics import linear_velocity
 
         cfg = config or contacts.ContactConfig()
-        self.labels = []
+        self.labels, self.foot_velocity, self.root_velocity, self.heading, self.foot_offset = [], [], [], [], []
         for k in range(len(store)):
-            c = contacts.detect(store.motion(k), cfg)
+            m = store.motion(k)
+            c = contacts.detect(m, cfg)
             self.labels.append(c.as_array())
+            self.foot_velocity.append(np.stack([c.lowest_velocity[s][:, :2] for s in contacts.SIDES], axis=1))
+            self.root_velocity.append(linear_velocity(m.root_pos, m.fps)[:, :2])
+            pts = contacts.foot_points(m)
+            self.foot_offset.append([pts[s][..., :2] - m.root_pos[:, None, :2] for s in contacts.SIDES])
+            self.heading.append(np.unwrap(m.ground()[:, 2]))
         self.store = store
 
-    def at(self, clip: int, tau) -> np.ndarray:
-        """``(F, 2)`` labels of clip ``clip`` at clip times ``tau (F,)`` (cyclic clips wrap, others clamp)."""
+    def _frames(self, clip: int, tau) -> np.ndarray:
+        """``(F,)`` fractional frames of clip ``clip`` at clip times ``tau (F,)`` (cyclic clips wrap, others clamp)."""
         st = self.store
-        lab = self.labels[clip]
         dur = float(st.durations[clip])
         tau = np.asarray(tau, dtype=np.float64)
         u = np.mod(tau, dur) if st.is_cyclic[clip] else np.clip(tau, 0.0, dur)
-        i = np.clip(np.rint(u * st.fps[clip]).astype(np.int64), 0, len(lab) - 1)
-        return lab[i]
+        return np.clip(u * st.fps[clip], 0.0, len(self.labels[clip]) - 1)
+
+    def at(self, clip: int, tau) -> np.ndarray:
+        """``(F, 2)`` labels of clip ``clip`` at clip times ``tau (F,)`` (the nearest frame's)."""
+        return self.labels[clip][np.rint(self._frames(clip, tau)).astype(np.int64)]
+
+    def sample(self, values, clip: int, tau) -> np.ndarray:
+        """Per-frame ``values (F_k, ...)`` of clip ``clip`` interpolated at clip times ``tau (F,)``, as the
+        mixer samples the clip (between the two frames around each time)."""
+        x = self._frames(clip, tau)
+        i0 = np.minimum(np.floor(x).astype(np.int64), len(values) - 1)
+        i1 = np.minimum(i0 + 1, len(values) - 1)
+        a = (x - i0).reshape((-1,) + (1,) * (np.ndim(values) - 1))
+        return values[i0] * (1.0 - a) + values[i1] * a
+
+
+def _played(result) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+    """The recorded actions of ``result``: their keys, ``(A, F)`` action times and weights (NaN, 0 where
+    absent), and the ``(F,)`` neutral weight."""
+    rec = result.recording.arrays()
+    n = result.motion.num_frames
+    keys = [k for k in result.actions if k in rec]
+    h = np.array([rec[k][0][:n] for k in keys]).reshape(len(keys), n)
+    w = np.array([rec[k][1][:n] for k in keys]).reshape(len(keys), n)
+    return keys, h, w, np.array(rec["neutral"][:n], dtype=np.float64)
+
+
+def _dominant(w, wn) -> np.ndarray:
+    """``(F,)`` index of the action with the most weight in each frame, -1 where the neutral pose has at
+    least as much (the first of equal actions wins)."""
+    if not len(w):
+        return np.full(len(wn), -1)
+    best = np.argmax(w, axis=0)
+    return np.where(w[best, np.arange(len(wn))] > wn, best, -1)
 
 
 def source_contacts(result, sources: SourceContacts | None = None) -> dict:
     """``{side: (F,) bool}``: frames where the source clip of the heaviest action (or the neutral pose)
     has that foot down, mapped through the record of ``result`` (a :class:`~kinodyn.blend.script.BlendResult`)."""
     src = sources or SourceContacts(result.library)
-    rec = result.recording.arrays()
-    n = result.motion.num_frames
-    best = np.array(rec["neutral"][:n], dtype=np.float64)
-    lab = np.ones((n, 2), dtype=bool)
-    for k, act in result.actions.items():
-        if k not in rec:
-            continue
-        h, w = rec[k]
-        h, w = h[:n], w[:n]
-        on = np.isfinite(h) & (w > best)
-        if not on.any():
-            continue
-        lab[on] = src.at(act.clip, h[on] * act.speed)
-        best = np.where(on, w, best)
+    keys, h, w, wn = _played(result)
+    dom = _dominant(np.where(np.isfinite(h), w, 0.0), wn)
+    lab = np.ones((len(wn), 2), dtype=bool)
+    for a, k in enumerate(keys):
+        on = dom == a
+        if on.any():
+            act = result.actions[k]
+            lab[on] = src.at(act.clip, h[a, on] * act.speed)
     return {"left": lab[:, 0], "right": lab[:, 1]}
 
 
@@ -131,6 +170,150 @@ def _sliding(speed, labels, frames=None) -> float:
     return float(100.0 * v.mean()) if len(v) else 0.0
 
 
+def _rotate(v, angle) -> np.ndarray:
+    """Horizontal vectors ``v (..., 2)`` turned by ``angle (...)`` radians about +Z."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+
+
+def _clip_rates(h, speed, fps: float) -> np.ndarray:
+    """``(F,)`` clip seconds per second of an action played at action times ``h (F,)`` (the time warp
+    times its speed); its nominal ``speed`` where a neighbouring frame is missing."""
+    r = np.full(len(h), np.nan)
+    if len(h) > 1:
+        r = np.gradient(h, 1.0 / fps) * speed
+    return np.where(np.isfinite(r), r, speed)
+
+
+#: The chain of counterfactual foot velocities of :func:`sliding_causes`, in order.
+CAUSES = ("own", "warp", "weights", "root", "pose")
+#: Frame groups of :func:`sliding_causes`.
+GROUPS = ("alone", "transition", "swing")
+#: Share of the total weight over which one action plays alone.
+ALONE_WEIGHT = 0.95
+
+
+def _neutral_source(result) -> tuple[int, float]:
+    """Clip and clip time of the neutral pose the mixer blends (:class:`~kinodyn.blend.mixer.Mixer`): the
+    script's neutral clip or ``idle`` at time 0; else the first clip's first double-support midpoint."""
+    from kinodyn.blend.library import sequences
+    from kinodyn.phases import DS
+
+    lib = result.library
+    name = result.script.neutral if result.script.neutral is not None else ("idle" if "idle" in lib.names else None)
+    if name is not None:
+        return lib.index(name), 0.0
+    seq = sequences(lib)[0]
+    ds = [i for i, p in enumerate(seq.phases) if p == DS]
+    return 0, 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
+
+
+def _offsets(src: SourceContacts, clip: int, tau, point, turn) -> np.ndarray:
+    """``(F, 2, 2)`` horizontal offsets from the root of foot points ``point (F, 2)`` (left, right) of clip
+    ``clip`` at clip times ``tau (F,)``, turned by ``turn (F,)``."""
+    rows = np.arange(len(tau))
+    out = [src.sample(src.foot_offset[clip][s], clip, tau)[rows, point[:, s]] for s in range(2)]
+    return _rotate(np.stack(out, axis=1), turn[:, None])
+
+
+def _source_side(result, src: SourceContacts, keys, h, dom, head, point):
+    """What the sources bring at each frame, turned into the blend's heading: the heaviest action's
+    lowest-point and root velocities per clip second ``(F, 2, 2)``, ``(F, 2)``, its clip rate and nominal
+    speed ``(F,)``, the ``(K + 1, F, 2, 2)`` offsets from the root of the foot point ``point (F, 2)``
+    (the blend's lowest) of every action and (last) the neutral pose (NaN where an action is not
+    playing), and ``(K, F, 2)`` which feet each action's source has down."""
+    n = len(dom)
+    foot, root, rate, nominal = np.zeros((n, 2, 2)), np.zeros((n, 2)), np.zeros(n), np.zeros(n)
+    offset = np.full((len(keys) + 1, n, 2, 2), np.nan)
+    down = np.ones((len(keys), n, 2), dtype=bool)
+    nc, nt = _neutral_source(result)
+    offset[-1] = _offsets(src, nc, np.full(n, nt), point, head - src.sample(src.heading[nc], nc, np.full(n, nt)))
+    for j, k in enumerate(keys):
+        act = result.actions[k]
+        live = np.isfinite(h[j])
+        tau = h[j, live] * act.speed
+        down[j, live] = src.at(act.clip, tau)
+        turn = head[live] - src.sample(src.heading[act.clip], act.clip, tau)
+        offset[j, live] = _offsets(src, act.clip, tau, point[live], turn)
+        on = (dom == j)[live]
+        if on.any():
+            at = np.nonzero(live)[0][on]
+            foot[at] = _rotate(src.sample(src.foot_velocity[act.clip], act.clip, tau[on]), turn[on, None])
+            root[at] = _rotate(src.sample(src.root_velocity[act.clip], act.clip, tau[on]), turn[on])
+            rate[at] = _clip_rates(h[j], act.speed, result.motion.fps)[at]
+            nominal[at] = act.speed
+    return foot, root, rate, nominal, offset, down
+
+
+def sliding_causes(result, sources: SourceContacts | None = None) -> dict:
+    """The sliding on source contacts (:func:`source_contacts`) split into measured causes that add up to it.
+
+    Every planted foot-frame ``i`` (``N`` of them) has the blend's horizontal velocity ``U_i`` of the
+    foot's lowest point; the sliding is ``sum |U_i| / N``. Counterfactual velocities lead from the
+    heaviest action's source clip (sampled as the mixer samples it, turned into the blend's heading) to
+    ``U_i``, each step changing one thing:
+
+    - ``A``: the source's own lowest-point velocity at that clip time, at the action's nominal speed;
+    - ``B``: the same at the clip rate actually played (the time warp's rate times the speed);
+    - ``C``: ``B`` plus the weight shifts between feet at different places: ``sum_j dŵ_j/dt (o_j - o)``
+      over the actions and the neutral pose, ``ŵ`` the weights over their total and ``o`` where a
+      source puts the blend's lowest foot point relative to its root (``o`` the heaviest's): how far a
+      linear mix of the sources' feet would move the foot while the weights ramp;
+    - ``D``: ``C`` with the source's root velocity replaced by the blend's (the mix of the actions' root
+      displacements and the support correction of ``root_motion="support"``: negative where it takes
+      back the weight shifts or a clip's own sliding);
+    - ``U``: the blend itself (the rest of how the blended pose moves the foot under the root unlike the
+      source: other clips' moving feet, the rotation blend, and in the arms with the lock, the lock).
+
+    ``own = |A|``, ``warp = |B| - |A|``, ``weights = |C| - |B|``, ``root = |D| - |C|``, ``pose = |U| - |D|``
+    (each summed and divided by ``N``, cm/s): they add up to the sliding exactly; a negative one cancels
+    sliding another brings. Where the neutral pose is heaviest its source is still (``A = B = 0``).
+    The same sum is split by frames: ``alone`` (one weight is at least :data:`ALONE_WEIGHT` of the
+    total), ``transition`` (the rest) and, of those, ``swing`` (another action with at least
+    :data:`WARP_WEIGHT` of the weight has that foot up in its source). Returns
+    ``{"sliding_<cause>_cm_s", "sliding_<group>_cm_s", "sliding_<group>_<cause>_cm_s", "share_<group>"
+    (of the foot-frames), "sliding_cm_s", "planted_frames"}``.
+    """
+    from kinodyn import contacts
+    from kinodyn.kinematics import linear_velocity
+
+    src = sources or SourceContacts(result.library)
+    m = result.motion
+    det = contacts.detect(m, contacts.ContactConfig(floor=0.0))
+    u = np.stack([det.lowest_velocity[s][:, :2] for s in contacts.SIDES], axis=1)  # (F, 2, 2)
+    keys, h, w, wn = _played(result)
+    w = np.where(np.isfinite(h), w, 0.0)
+    dom = _dominant(w, wn)
+    pts = contacts.foot_points(m)
+    point = np.stack([pts[s][..., 2].argmin(axis=1) for s in contacts.SIDES], axis=1)  # ``det``'s lowest
+    foot, root, rate, nominal, offset, down = _source_side(result, src, keys, h, dom, m.ground()[:, 2], point)
+    total_w = np.maximum(w.sum(axis=0) + wn, 1e-12)
+    shares = np.concatenate([w, wn[None]]) / total_w
+    dshare = np.gradient(shares, 1.0 / m.fps, axis=1) if m.num_frames > 1 else np.zeros_like(shares)
+    apart = np.nan_to_num(offset - offset[dom, np.arange(len(dom))][None])  # from the heaviest's foot
+    a = foot * nominal[:, None, None]
+    b = foot * rate[:, None, None]
+    c = b + (dshare[..., None, None] * apart).sum(axis=0)
+    d = c + (linear_velocity(m.root_pos, m.fps)[:, :2] - root * rate[:, None])[:, None, :]
+    speeds = [np.linalg.norm(v, axis=-1) for v in (a, b, c, d, u)]  # (F, 2) each
+    terms = dict(zip(CAUSES, [speeds[0]] + [speeds[i] - speeds[i - 1] for i in range(1, len(speeds))]))
+    lab = source_contacts(result, src)
+    planted = np.stack([lab[s] for s in contacts.SIDES], axis=1)
+    alone = np.maximum(w.max(axis=0, initial=0.0), wn) >= ALONE_WEIGHT * total_w
+    others = (w >= WARP_WEIGHT * total_w) & (np.arange(len(keys))[:, None] != dom[None])
+    swing = (others[..., None] & ~down).any(axis=0) & ~alone[:, None]  # (F, 2)
+    groups = {"alone": planted & alone[:, None], "transition": planted & ~alone[:, None], "swing": planted & swing}
+    count = max(int(planted.sum()), 1)
+    out = {f"sliding_{k}_cm_s": 100.0 * float(t[planted].sum()) / count for k, t in terms.items()}
+    for g, sel in groups.items():
+        out[f"sliding_{g}_cm_s"] = 100.0 * float(speeds[-1][sel].sum()) / count
+        out[f"share_{g}"] = float(sel.sum()) / count
+        out.update({f"sliding_{g}_{k}_cm_s": 100.0 * float(t[sel].sum()) / count for k, t in terms.items()})
+    out["sliding_cm_s"] = 100.0 * float(speeds[-1][planted].sum()) / count
+    out["planted_frames"] = int(planted.sum())
+    return out
+
+
 def measure(result, sources: SourceContacts | None = None) -> dict:
     """Every figure of one blended script (see the module docstring)."""
     from kinodyn import contacts
@@ -139,6 +322,7 @@ def measure(result, sources: SourceContacts | None = None) -> dict:
     m = result.motion
     det = contacts.detect(m, contacts.ContactConfig(floor=0.0))
     speed = {s: np.linalg.norm(det.lowest_velocity[s][:, :2], axis=1) for s in contacts.SIDES}
+    sources = sources or SourceContacts(result.library)
     lab = source_contacts(result, sources)
     trans = result.transition_mask()
     off = result.recording.lock_offsets()[:m.num_frames]
@@ -169,6 +353,7 @@ def measure(result, sources: SourceContacts | None = None) -> dict:
         "warp_rate_min": float(rates.min()) if len(rates) else 1.0,
         "warp_rate_max": float(rates.max()) if len(rates) else 1.0,
         "frames": int(m.num_frames),
+        "causes": sliding_causes(result, sources),
         "starts": {str(k): [round(a, 4), None if b is None else round(b, 4)] for k, (a, b) in result.starts.items()},
     }
 
@@ -273,4 +458,23 @@ def table(figs: dict, label: str = "") -> str:
     lines.append(f"sources: acc {s['pelvis_acc_source']:.1f}, decel {s['root_decel_source']:.1f} m/s^2; "
                  + ", ".join(f"{k} {figs[k]:.2f}" for k in ("sliding_ratio", "sliding_ratio_sync_only", "lock_p95_ratio",
                                                            "pelvis_acc_ratio", "root_decel_ratio")))
+    return "\n".join(lines + [causes_table(figs)])
+
+
+def causes_table(figs: dict) -> str:
+    """The sliding of every arm split into its causes (:func:`sliding_causes`): contributions in cm/s that
+    add up to ``slide``, by cause and by frame group, the transitions' by cause, and each group's share of
+    the planted foot-frames."""
+    cols = ([(f"sliding_{c}_cm_s", c) for c in CAUSES] + [(f"sliding_{g}_cm_s", g[:5]) for g in GROUPS]
+            + [(f"sliding_transition_{c}_cm_s", f"tr_{c}") for c in CAUSES]
+            + [(f"share_{g}", f"%{g[:5]}") for g in GROUPS])
+    lines = [("sliding by cause (cm/s, adding up to slide): own = the source clip's own, warp = the time warp, "
+              "weights = weight shifting between feet at different places, root = root motion unlike the "
+              "source's, pose = the rest of the blended pose's foot motion; "
+              "by frames: alone, transition, swing (another weighted action has the foot up)"),
+             f"{'arm':<10}{'slide':>8}" + "".join(f"{c:>8}" for _, c in cols)]
+    for arm, f in figs["arms"].items():
+        c = f["causes"]
+        lines.append(f"{arm:<10}{c['sliding_cm_s']:8.2f}" + "".join(
+            f"{100 * c[k]:8.1f}" if k.startswith("share") else f"{c[k]:8.2f}" for k, _ in cols))
     return "\n".join(lines)
