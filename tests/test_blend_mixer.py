@@ -425,7 +425,7 @@ def test_compiled_mixer_matches_numpy_reference(synchronize):
     np.testing.assert_allclose(q_fast, q_ref, atol=_TOL, rtol=0, err_msg="rotations")
     if synchronize:
         stored = [[0.0, 0.0, 0.989644181], [0.0, 0.0, 0.989643308], [1.497719604, 0.157468841, 0.930940561],
-                  [3.07158376, 0.33472448, 0.922517688], [2.919481536, 0.21362477, 0.952874219]]
+                  [3.07158376, 0.33472448, 0.922517688], [3.112472453, 0.252784383, 0.938247359]]
         np.testing.assert_allclose(r_fast[::60].reshape(-1, 3)[::5], stored, atol=2e-9, rtol=0, err_msg="stored")
 
 
@@ -437,8 +437,8 @@ def test_figure_script_matches_the_stored_root_path():
 
     root = run_script(transition_script()).motion.root_pos[::150]
     stored = [[0.0, 0.0, 0.99], [3.206096067, 0.066211728, 0.921690863], [9.625124723, 0.585416705, 0.903117196],
-              [15.743968783, 1.070073884, 0.917116921], [17.387664964, 1.151203583, 0.970816031],
-              [20.145495792, 1.183555104, 1.19417871], [20.135848335, 1.186022162, 0.99]]
+              [15.743968783, 1.070073884, 0.917116921], [17.394799359, 1.141790184, 0.973714905],
+              [20.107867428, 1.186525499, 0.889902112], [20.139479058, 1.189587407, 0.99]]
     np.testing.assert_allclose(root, stored, atol=2e-9, rtol=0)
 
 
@@ -505,11 +505,12 @@ def test_the_pelvis_lowers_to_keep_a_held_foot_within_reach(lib):
             drops.append(float(mx.footlock.drop[0]))
         return np.array(drops)
 
-    cfg = BlendConfig()
+    # without the closing step the walk is warped into the kick's stance and leaves a foot behind
+    cfg = BlendConfig(closing_step=False)
     drops = run(cfg)
     assert drops.max() > 0.005 and drops.max() <= cfg.max_pelvis_drop + 1e-12
     assert np.diff(drops).max() <= cfg.max_pelvis_drop / 60 / 0.2 + 1e-12
-    assert run(BlendConfig(max_pelvis_drop=0.0)).max() == 0.0
+    assert run(BlendConfig(max_pelvis_drop=0.0, closing_step=False)).max() == 0.0
     with pytest.raises(ParameterError, match="max_pelvis_drop"):
         BlendConfig(max_pelvis_drop=-0.01)
 
