@@ -552,3 +552,53 @@ def test_a_walk_fading_into_the_neutral_pose_ends_with_a_closing_step(lib):
     closed = [final_offset(t, True) for t in stops]
     assert max(plain) > 0.2 and max(closed) < 0.08
     assert max(closed) - min(closed) < 0.01
+
+
+def _rates(rec, key, fps=60.0):
+    """Warp rates (action time per second) of ``key`` wherever it carries a visible weight."""
+    from kinodyn.blend.evaluate import WARP_WEIGHT
+
+    h, w = rec[key]
+    ok = np.isfinite(np.diff(h)) & (w[1:] >= WARP_WEIGHT) & (w[:-1] >= WARP_WEIGHT)
+    return np.diff(h)[ok] * fps
+
+
+@pytest.mark.parametrize("closing", [True, False])
+def test_a_walk_into_a_jump_closes_its_stride_at_its_own_speed(closing):
+    """Finding 6: a walk handing over to a jump (in place, its crouch a long double support) plays on
+    at its own speed until the jump takes over, and the jump plays its crouch at its own speed; without
+    the closing step both share the walk's short double support (here 0.60x-1.73x)."""
+    lib = builtin(["idle", "walk", "jump"])
+    mx = Mixer(lib, 1, BlendConfig(closing_step=closing, ramp_in=0.5, ramp_out=0.5), record=True)
+    mx.start("walk", key="w", priority=1)
+    for f in range(150):
+        if f == 60:
+            mx.start("jump", key="j", priority=2)
+        if f == 72:
+            mx.stop("w")
+        mx.step(1 / 60)
+    rec = mx.recordings[0].arrays()
+    rates = np.concatenate([_rates(rec, "w"), _rates(rec, "j")])
+    w, j = mx.chars[0].history["w"], mx.chars[0].history["j"]
+    if closing:
+        assert w.free is not None and w.free[0] == pytest.approx(j.t_on)
+        assert rates.min() > 0.95 and rates.max() < 1.05, (rates.min(), rates.max())
+    else:
+        assert w.free is None and np.abs(rates - 1.0).max() > 0.3, (rates.min(), rates.max())
+
+
+def test_a_start_during_a_lone_stance_does_not_wait_for_its_end():
+    """A walk asked for while a kick stands alone in its last double support (from 1.28 s, 0.72 s
+    long) starts at the next frame (the step is split), and neither is warped beyond 0.5x-2x."""
+    lib = builtin(["idle", "walk", "kick"])
+    mx = Mixer(lib, 1, BlendConfig(), record=True)
+    mx.start("kick", key="k", priority=2)
+    for f in range(180):
+        if f == 84:
+            mx.start("walk", key="w", priority=1)
+        mx.step(1 / 60)
+    w = mx.chars[0].history["w"]
+    assert w.t_on == pytest.approx(1.4, abs=1e-9)
+    rec = mx.recordings[0].arrays()
+    rates = np.concatenate([_rates(rec, "w"), _rates(rec, "k")])
+    assert rates.min() >= 0.5 and rates.max() <= 2.0, (rates.min(), rates.max())

@@ -188,10 +188,9 @@ class Character:
                 a.t_on = now
                 self.planner.start(now)
                 self._auto_stops(now)
-            elif len(self.sync.tracks) == 1:  # a lone in-place action stands: start at the next frame
+            elif len(self.sync.tracks) == 1:  # a lone action stands to its end: start at the next frame
                 tr = self.sync.tracks[0]
-                e = tr.elem(self.sync.current)
-                if not tr.seq.cyclic and e is not None and tr.code(e) == DS:
+                if not tr.seq.cyclic and {tr.code(e) for e in tr.elems[self.sync.current - tr.first:]} == {DS}:
                     self.planner.split(now)
         self._layout()
 
