@@ -483,7 +483,7 @@ class Synchronizer:
         in place."""
         ratio = self.config.tempo_hold
         stand = [not t.seq.cyclic for t in movers]
-        if (ratio <= 0 or len(nxt) < 2 or not all(t.seq.cyclic for t in joiners)
+        if (ratio <= 0 or len(nxt) < 2 or all(stand) or not all(t.seq.cyclic for t in joiners)
                 or any(s and t.code(e) != DS for s, t, e in zip(stand, movers, old_e))):
             return set()
         f = self.frontier
