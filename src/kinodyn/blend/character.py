@@ -243,9 +243,9 @@ class Character:
         """The first step at which ``new``, an in-place action (non-cyclic, its first element a double
         support lasting half its ramp-in or more: a jump's crouch, a kick's stance), may start while a
         locomotion cycle of no higher priority plays (``None``: the next one, as any start): the one of
-        the planned steps within :data:`CLOSING_DELAY` at whose start plus half of ``new``'s ramp-in
-        (where its weight passes one half) the cycle's feet best match ``new``'s first frames, relative
-        to the root. The cycle plays on at its own speed until then; at the start it leaves the
+        the planned steps within :data:`CLOSING_DELAY` from which, over ``new``'s ramp-in (a quarter,
+        half and three quarters into it, both at their own speed), the cycle's feet best match
+        ``new``'s first frames, relative to the root. The cycle plays on at its own speed until then; at the start it leaves the
         synchronizer and plays on, at its speed, while it fades (:meth:`_closed`), so its stride
         closes there (the swing foot lands beside the stance foot) as in a stop's closing step
         (:meth:`_closing_stop`), and ``new`` plays at its own speed from its first frame."""
@@ -263,13 +263,16 @@ class Character:
         hs, ts = self._planned(run, now, CLOSING_DELAY + half)
         T = self.planner.T
         steps = [k for k in range(self.sync.current + 1, self.sync.frontier + 1)
-                 if k in T and len(ts) > 1 and ts[0] <= T[k] + half <= ts[-1] and T[k] <= now + CLOSING_DELAY]
+                 if k in T and len(ts) > 1 and ts[0] <= T[k] and T[k] + 1.5 * half <= ts[-1]
+                 and T[k] <= now + CLOSING_DELAY]
         if not steps:
             return None
-        feet = self._feet_of(run, np.interp([T[k] + half for k in steps], ts, hs))
-        goal = self._feet_of(new, [new.h0 + half])[0]
+        us = np.array([0.5, 1.0, 1.5]) * half  # a quarter, half and three quarters into the fade
+        feet = self._feet_of(run, np.interp([T[k] + u for k in steps for u in us], ts, hs))
+        feet = feet.reshape(len(steps), len(us), 2, 2)
+        goal = self._feet_of(new, new.h0 + us)
         self.closing[new.key] = run.key
-        return steps[int(np.argmin(np.linalg.norm(feet - goal, axis=-1).sum(axis=-1)))]
+        return steps[int(np.argmin(np.linalg.norm(feet - goal, axis=-1).sum(axis=(-1, -2))))]
 
     def _closed(self, new: ActionState, tk: float) -> None:
         """``new`` started at ``tk`` at a closing step (:meth:`_closing_start`): the cycle it closes
