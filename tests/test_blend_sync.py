@@ -278,3 +278,32 @@ def test_errors_name_the_problem():
         sync.request("a", PhaseSequence([DS], [1.0]))
     with pytest.raises(ParameterError, match="no action"):
         sync.remove("zzz")
+
+
+def test_a_start_waits_for_its_not_before_step():
+    walk = PhaseSequence([RS, DS, LS, DS], [0.3, 0.1, 0.3, 0.1], cyclic=True)
+    stand = PhaseSequence([DS, RS, DS], [0.5, 0.5, 0.5])
+    sync = Synchronizer(SyncConfig(nk=3))
+    sync.request("walk", walk, 1)
+    sync.request("kick", stand, 2, not_before=sync.current + 3)
+    for _ in range(4):
+        sync.enter_next()
+    kick = next(t for t in sync.tracks + sync.pending if t.key == "kick")
+    assert kick.first == kick.not_before and not [e for e in sync.events if e.kind == "wait"]
+
+
+def test_split_holds_a_lone_element_into_a_new_step_and_keeps_the_frontier():
+    """A lone action's long element is cut at once: the current step ends, the element is held into
+    the next one (its later elements move one step on), the frontier stays where it was."""
+    kick = PhaseSequence([DS, RS, DS], [0.5, 0.8, 0.7])
+    sync = Synchronizer(SyncConfig(nk=3))
+    sync.request("kick", kick, 2)
+    t = sync.tracks[0]
+    k, front, elems = sync.current, sync.frontier, list(t.elems)
+    assert sync.split(0.2)
+    assert sync.frontier == front and t.elems == [elems[0]] + elems[:-1]
+    assert [sync.phase(s) for s in range(k, front + 1)] == [t.code(e) for e in t.elems]
+    assert sync.nominal[k] == 0.2 and sync.nominal[k + 1] == pytest.approx(0.3)
+    sync.request("walk", PhaseSequence([RS, DS, LS, DS], [0.3, 0.1, 0.3, 0.1], cyclic=True), 1)
+    sync.enter_next()
+    assert len(sync.tracks) == 2 and not sync.split(0.1)  # only a lone action is split

@@ -210,11 +210,6 @@ def test_cmu_walk_to_run_neither_pops_nor_warps_a_clip_beyond_half_to_twice_its_
 
 @pytest.mark.mocap
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "finding 6 open: the walk's double support (0.12 s) and the jump's crouch (0.83 s) share one step, so "
-    "the walk plays at 0.11x and the crouch at 3x; holding the crouch over the walk's next step keeps both "
-    "near 1x (measured 0.99-1.05x) but the lock then holds the crouch's feet while the walk swings them "
-    "(lock p95 9 -> 16 cm on this script), so tempo holds stay between cyclic actions"))
 def test_cmu_walk_into_the_jump_slows_over_a_step_and_keeps_the_crouch():
     """Finding 6: walking into the jump, neither the walk nor the jump's crouch is warped beyond 0.5x-2x."""
     from kinodyn.blend.evaluate import WARP_WEIGHT

@@ -58,6 +58,9 @@ class ActionState:
         handover: stopped while another action waited for its synchronized start: it keeps playing
             until that action starts, then fades out (the character never falls back to the neutral
             pose between the two).
+        free: ``(t, h)``: the action left the synchronizer at real time ``t`` and action time ``h`` (a
+            locomotion cycle handing over to an in-place action at a closing step) and plays on at its
+            own speed until it has faded out; ``None``: synchronized (or not synchronizing).
     """
 
     key: object
@@ -75,6 +78,7 @@ class ActionState:
     end_h: float = math.inf
     order: int = 0
     handover: bool = False
+    free: tuple[float, float] | None = None
 
     def weight_params(self):
         return (math.inf if self.t_on is None else self.t_on, self.ramp_in,

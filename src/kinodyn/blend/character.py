@@ -23,6 +23,7 @@ from kinodyn.blend.actions import ActionState
 from kinodyn.blend.sync import Synchronizer
 from kinodyn.blend.timewarp import WarpPlanner
 from kinodyn.errors import ParameterError, UnknownNameError
+from kinodyn.phases import DS
 
 __all__ = ["CLOSING_DELAY", "Character", "Slots"]
 
@@ -102,6 +103,7 @@ class Character:
         self._wcache = None
         self.history: dict[object, ActionState] = {}   # every action ever started (for analysis)
         self.neutral_feet = None  # (2, 2) the neutral pose's feet (set by the mixer; closing steps)
+        self.closing: dict[object, object] = {}  # the cycle an in-place action closes (_closing_start)
 
     # ------------------------------------------------------------------ weights (scalar, for planning)
     def weights_at(self, t: float) -> dict:
@@ -181,11 +183,15 @@ class Character:
                 a.t_off = max(now, now + (a.end_h - a.h0) - a.ramp_out)
         else:
             was_idle = self.sync.idle and not self.sync.pending
-            self.sync.request(key, seq, priority)
+            self.sync.request(key, seq, priority, not_before=None if was_idle else self._closing_start(a, now))
             if was_idle:
                 a.t_on = now
                 self.planner.start(now)
                 self._auto_stops(now)
+            elif len(self.sync.tracks) == 1:  # a lone action stands to its end: start at the next frame
+                tr = self.sync.tracks[0]
+                if not tr.seq.cyclic and {tr.code(e) for e in tr.elems[self.sync.current - tr.first:]} == {DS}:
+                    self.planner.split(now)
         self._layout()
 
     def stop(self, key, now: float):
@@ -224,29 +230,85 @@ class Character:
             return now
         if any(b is not a and (b.t_on is None or b.t_off is None or b.t_off > now) for b in self.actions.values()):
             return now  # another action waits or plays on (an auto-stopped one until its planned stop)
+        half = 0.5 * a.ramp_out
+        hs, ts = self._planned(a, now, CLOSING_DELAY + half)
+        ok = ts - half >= now
+        if not ok.any():
+            return now
+        feet = self._feet_of(a, hs[ok])
+        best = int(np.argmin(np.linalg.norm(feet - self.neutral_feet, axis=-1).sum(axis=-1)))
+        return float(ts[ok][best] - half)
+
+    def _closing_start(self, new: ActionState, now: float) -> int | None:
+        """The first step at which ``new``, an in-place action (non-cyclic, its first element a double
+        support lasting half its ramp-in or more: a jump's crouch, a kick's stance), may start while a
+        locomotion cycle of no higher priority plays (``None``: the next one, as any start): the one of
+        the planned steps within :data:`CLOSING_DELAY` from which, over ``new``'s ramp-in (a quarter,
+        half and three quarters into it, both at their own speed), the cycle's feet best match
+        ``new``'s first frames, relative to the root. The cycle plays on at its own speed until then; at the start it leaves the
+        synchronizer and plays on, at its speed, while it fades (:meth:`_closed`), so its stride
+        closes there (the swing foot lands beside the stance foot) as in a stop's closing step
+        (:meth:`_closing_stop`), and ``new`` plays at its own speed from its first frame."""
+        seq = new.seq
+        if (not self.config.closing_step or self.neutral_feet is None or seq.cyclic
+                or int(seq.phases[0]) != DS or float(seq.durations[0]) < 0.5 * new.ramp_in):
+            return None
+        runs = [b for b in self.actions.values() if b is not new and b.t_on is not None and b.t_off is None
+                and self.store.is_cyclic[b.clip] and b.priority <= new.priority]
+        if not runs:
+            return None
+        weights = self.weights_at(now)
+        run = max(runs, key=lambda b: weights.get(b.key, 0.0))
+        half = 0.5 * new.ramp_in
+        hs, ts = self._planned(run, now, CLOSING_DELAY + half)
+        T = self.planner.T
+        steps = [k for k in range(self.sync.current + 1, self.sync.frontier + 1)
+                 if k in T and len(ts) > 1 and ts[0] <= T[k] and T[k] + 1.5 * half <= ts[-1]
+                 and T[k] <= now + CLOSING_DELAY]
+        if not steps:
+            return None
+        us = np.array([0.5, 1.0, 1.5]) * half  # a quarter, half and three quarters into the fade
+        feet = self._feet_of(run, np.interp([T[k] + u for k in steps for u in us], ts, hs))
+        feet = feet.reshape(len(steps), len(us), 2, 2)
+        goal = self._feet_of(new, new.h0 + us)
+        self.closing[new.key] = run.key
+        return steps[int(np.argmin(np.linalg.norm(feet - goal, axis=-1).sum(axis=(-1, -2))))]
+
+    def _closed(self, new: ActionState, tk: float) -> None:
+        """``new`` started at ``tk`` at a closing step (:meth:`_closing_start`): the cycle it closes
+        leaves the synchronizer (from the current step) and plays on at its own speed from its action
+        time at ``tk`` (:attr:`ActionState.free`) while it fades out: from ``tk`` when it was stopped
+        while ``new`` waited (a hand-over), else once ``new`` has faded in (unless stopped earlier)."""
+        run = self.actions.get(self.closing.pop(new.key, None))
+        tm = None if run is None else self.planner.timing.get(run.key)
+        if tm is None or tm.current is None or run.free is not None:
+            return
+        seg = tm.current
+        u = min(max(tk - seg.t0, 0.0), seg.t1 - seg.t0)
+        c = seg.coef
+        run.free = (tk, ((c[3] * u + c[2]) * u + c[1]) * u + c[0])
+        if not run.handover:  # a hand-over fades out from tk (below, in advance)
+            run.t_off = min(tk, math.inf if run.t_off is None else run.t_off)
+        self.sync.remove(run.key, self.sync.current)
+
+    def _planned(self, a: ActionState, now: float, within: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(hs, ts)``: action times of ``a`` every 1/60 s from ``now`` on, and the planned real times
+        it reaches them, as far as the plan reaches within ``within`` seconds (empty: not playing)."""
         tm = self.planner.timing.get(a.key)
         seg = None if tm is None else tm.current
         if seg is None or not seg.t0 <= now <= seg.t1:
-            return now
+            return np.zeros(0), np.zeros(0)
         c = seg.coef
         u = now - seg.t0
         h_now = ((c[3] * u + c[2]) * u + c[1]) * u + c[0]
-        half = 0.5 * a.ramp_out
-        # candidate moments: every 1/60 s of action time that the plan reaches within the delay
         hs = h_now + np.arange(1, int(CLOSING_SAMPLES)) / 60.0
         ts = []
         for h in hs:
             t = self.planner.time_of(a.key, float(h))
-            if t is None or t - half > now + CLOSING_DELAY:
+            if t is None or t > now + within:
                 break
             ts.append(t)
-        ts = np.array(ts)
-        ok = ts - half >= now
-        if not ok.any():
-            return now
-        feet = self._feet_of(a, hs[:len(ts)][ok])
-        best = int(np.argmin(np.linalg.norm(feet - self.neutral_feet, axis=-1).sum(axis=-1)))
-        return float(ts[ok][best] - half)
+        return hs[:len(ts)], np.array(ts)
 
     def _feet_of(self, a: ActionState, hs) -> np.ndarray:
         """``(M, 2, 2)`` horizontal positions of the lowest points of the left and right foot of action
@@ -266,9 +328,10 @@ class Character:
         if self.sync is None:
             ends = [a.t_off + a.ramp_out for a in self.actions.values() if a.t_off is not None]
             return min(ends) if ends else math.inf
+        gone = min((a.t_off + a.ramp_out for a in self.actions.values() if a.free is not None), default=math.inf)
         if self.sync.idle:
-            return math.inf
-        return self.planner.T.get(self.sync.current + 1, math.inf)
+            return gone
+        return min(gone, self.planner.T.get(self.sync.current + 1, math.inf))
 
     def advance(self, t: float):
         """Enter every step that begins at or before ``t``."""
@@ -278,24 +341,28 @@ class Character:
             self._layout()
             return
         guard = 0
-        changed = False
         sync = self.sync
         planner = self.planner
         actions = self.actions
+        done = [key for key, a in actions.items() if a.free is not None and a.gone(t)]
+        for key in done:  # a freed cycle has faded out
+            del actions[key]
+        changed = bool(done)
         while sync.tracks and planner.T.get(sync.current + 1, math.inf) <= t:
             guard += 1
             if guard > 10_000:
                 raise ParameterError("time warp produced degenerate steps")
             tk = planner.T[sync.current + 1]
             gone = [key for key, a in actions.items()
-                    if a.t_on is not None and a.t_off is not None and tk >= a.t_off + a.ramp_out]
+                    if a.t_on is not None and a.t_off is not None and tk >= a.t_off + a.ramp_out and a.free is None]
             for key in gone:
                 sync.remove(key, sync.current + 1)
             sync.enter_next()
             k = sync.current
             if len(sync.tracks) + len(sync.pending) != len(actions):
                 live = {tr.key for tr in sync.tracks}
-                for key in [key for key, a in actions.items() if a.t_on is not None and key not in live]:
+                for key in [key for key, a in actions.items()
+                            if a.t_on is not None and key not in live and (a.free is None or a.gone(tk))]:
                     del actions[key]
                     changed = True
             if not sync.tracks:
@@ -307,6 +374,8 @@ class Character:
                     if a.t_on is None:
                         a.t_on = tk
                         changed = started = True
+                        if tr.key in self.closing:
+                            self._closed(a, tk)
             if started and not sync.pending:
                 for a in actions.values():
                     if a.handover:
@@ -351,7 +420,7 @@ class Character:
         rows = []
         for s, key in enumerate(order):
             tm = timing.get(key)
-            seg = None if tm is None else tm.current
+            seg = None if tm is None or self.actions[key].free is not None else tm.current
             if seg is not None and seg.t1 > seg.t0 and on[s] != math.inf and seg.t0 == tk:
                 rows.append((seg.t0, seg.t1) + seg.coef)
             else:
@@ -376,8 +445,9 @@ class Character:
             speed.append(a.speed)
             prio.append(a.priority)
             on, ri, off, ro = a.weight_params()
-            if sync is None:
-                seg.append((a.t_on, math.inf, a.h0, 1.0, 0.0, 0.0))
+            if sync is None or a.free is not None:
+                t0, h0 = (a.t_on, a.h0) if a.free is None else a.free
+                seg.append((t0, math.inf, h0, 1.0, 0.0, 0.0))
             else:
                 tr = tracks.get(a.key)
                 if tr is None or tr.elem(k) is None:

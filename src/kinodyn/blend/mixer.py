@@ -101,7 +101,11 @@ class BlendConfig:
         closing_step: with synchronization, an action stopped while nothing else plays (fading into
             the neutral pose) plays on, up to :data:`~kinodyn.blend.character.CLOSING_DELAY` seconds,
             so that its weight passes one half when its feet stand where the neutral pose's do: the
-            feet come down there instead of the lock holding them where the action left them.
+            feet come down there instead of the lock holding them where the action left them. And an
+            in-place action (a jump, a kick: non-cyclic, starting with a long double support) asked
+            for over a locomotion cycle starts at the step where the cycle's feet best match its
+            first frames; the cycle then leaves the synchronization and fades out at its own speed
+            (it ends there), and the in-place action plays at its own speed.
     """
 
     synchronize: bool = True

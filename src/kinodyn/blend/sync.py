@@ -18,12 +18,10 @@ are; when one of them is incompatible, its start waits for the next step (the pa
 ``max_start_delay`` such waits it joins the frontier like a running action whose current element is
 ``DS`` (the neutral pose's phase), so the appendix guarantee covers starts too and no start waits
 forever unless it can never be satisfied by the rule (it then keeps waiting, reported in the log).
-Between cyclic actions an element much longer than the others' is also held for tempo
-(:attr:`SyncConfig.tempo_hold`), so a slow cycle is not warped to a fast one element by element.
+An element much longer than the others' is also held for tempo (:attr:`SyncConfig.tempo_hold`).
 
-The synchronizer is the one mutable object of this module (it is real-time state): it knows nothing of
-real time (only the elements' own durations, for tempo holds); :mod:`kinodyn.blend.timewarp` gives steps
-their durations. Steps are integers; element indices are integers of the extended sequences.
+The synchronizer (real-time state) knows only the elements' own durations (for tempo holds), not real
+time: :mod:`kinodyn.blend.timewarp` gives steps their durations. Steps and element indices are integers.
 """
 
 from __future__ import annotations
@@ -65,14 +63,14 @@ class SyncConfig:
             flight against double support / flight) among those that fit. The paper starts every action
             at its first element; with compatibility alone a run may start with its flight over a
             walk's single support (FLIGHT absorbs), which blends a planted foot with a swinging one.
-        tempo_hold: between cyclic actions, an element whose own duration is over this many times the
-            *nominal* time its steps have lasted so far is held for one more step (enlarged) when
-            holding it conflicts with no other action's next element, so that one element of a slow
-            cycle spans several elements of a fast one (a walk's single support over a run's support
-            and flight) instead of both being warped to one step, at 0.26x and 2.7x (0: never). A
-            step's nominal duration: the least time an action has left in its element (at its speed);
-            the warp splits held elements by it. Not with a non-cyclic action in the step: holding an
-            in-place action's double support while a walk swings a foot sets the lock against the pose.
+        tempo_hold: an element whose own duration is over this many times the *nominal* time its
+            steps have lasted so far is held for one more step (enlarged) when holding it conflicts
+            with no other action's next element, so that one element of a slow cycle spans several of
+            a fast one (a walk's single support over a run's support and flight) instead of both being
+            warped to one step, at 0.26x and 2.7x (0: never). A step's nominal duration: the least time
+            an action has left in its element (at its speed); the warp splits held elements by it.
+            Between cyclic actions, or of a standing non-cyclic action (its double support, as a walk
+            starts over a kick's end; the kick's start takes the walk out, see the mixer's closing step).
     """
 
     nk: int = 5
@@ -86,8 +84,7 @@ class SyncConfig:
         if not isinstance(self.max_start_delay, int) or self.max_start_delay < 0:
             raise ParameterError(f"max_start_delay must be an integer >= 0, got {self.max_start_delay!r}")
         if not (self.tempo_hold == 0 or (self.tempo_hold >= 1 and self.tempo_hold < float("inf"))):
-            raise ParameterError(f"tempo_hold must be 0 (off) or a finite ratio >= 1, got "
-                                 f"{self.tempo_hold!r}")
+            raise ParameterError(f"tempo_hold must be 0 (off) or a finite ratio >= 1, got {self.tempo_hold!r}")
 
 
 class Resolution(NamedTuple):
@@ -130,12 +127,9 @@ def resolve(old: Sequence[int], nxt: Sequence[int], priorities: Sequence[float])
         nxt: ``(n,)`` phase codes of each action's next element.
         priorities: ``(n,)`` priorities, higher first; ties keep input order.
 
-    Returns:
-        A :class:`Resolution`. At least one action advances (is not held) whenever ``n > 0``, and the
-        step's phase is never ``ERR``.
-
-    Raises:
-        ParameterError: ``old`` already combines to ``ERR`` or the lengths differ.
+    Returns a :class:`Resolution`: at least one action advances (is not held) whenever ``n > 0``,
+    and the step's phase is never ``ERR``. Raises ParameterError: ``old`` already combines to ``ERR``
+    or the lengths differ.
     """
     n = len(old)
     if len(nxt) != n or len(priorities) != n:
@@ -147,15 +141,13 @@ def resolve(old: Sequence[int], nxt: Sequence[int], priorities: Sequence[float])
     cand = _join(nxt)
     if cand != ERR:
         return Resolution((), cand, None, "free")
-    # ERR: nxt holds both RS and LS and no FLIGHT. The constraint comes from the highest-priority
-    # action whose next element is a single support allowed by the previous step.
+    # ERR: RS and LS, no FLIGHT; the constraint: the first allowed single support by priority
     order = sorted(range(n), key=lambda i: -priorities[i])
     first = None
     for i in order:
         if nxt[i] in (RS, LS) and (nxt[i] | prev) != ERR:
             first = nxt[i]
             break
-    # prev is DS, RS, LS or FLIGHT, and nxt contains both RS and LS, so `first` exists.
     tries = [(first, "priority"), (RS if first == LS else LS, "other")]
     for c, rule in tries:
         other = LS if c == RS else RS
@@ -163,8 +155,7 @@ def resolve(old: Sequence[int], nxt: Sequence[int], priorities: Sequence[float])
         ph = _result(old, nxt, held)
         if ph != ERR and len(held) < n:
             return Resolution(held, ph, c, rule)
-    # Appendix A: the previous step is a flight (else the first try succeeds); holding the absorbing
-    # element(s) as well makes the step a flight, and some action with a candidate of type c advances.
+    # Appendix A: after a flight, holding the absorbing element(s) too makes the step a flight
     for c in (first, RS if first == LS else LS):
         other = LS if c == RS else RS
         held = tuple(i for i in range(n) if nxt[i] == other or old[i] == FLIGHT)
@@ -192,23 +183,17 @@ def appendix_set(old: Sequence[int], nxt: Sequence[int]) -> frozenset[int]:
         j = next(i for i, o in enumerate(old) if o == FLIGHT)
         return frozenset(i for i in range(len(old)) if i != j)
     keep = []
-    acc = prev
     for i, c in enumerate(nxt):
-        if (acc | c) != ERR:
+        if (prev | c) != ERR:
             keep.append(i)
-            acc |= c
+            prev |= c
     return frozenset(keep)
 
 
 def brute_force_holds(old: Sequence[int], nxt: Sequence[int]) -> list[tuple[int, ...]]:
     """Every hold set that synchronizes the step with at least one action advancing (test oracle)."""
     n = len(old)
-    out = []
-    for r in range(n):
-        for held in combinations(range(n), r):
-            if _result(old, nxt, set(held)) != ERR:
-                out.append(held)
-    return out
+    return [h for r in range(n) for h in combinations(range(n), r) if _result(old, nxt, set(h)) != ERR]
 
 
 # ----------------------------------------------------------------------------------------- the state
@@ -225,9 +210,9 @@ class Track:
         first: step at which ``elems[0]`` is played; ``None`` while the start is pending.
         elems: element index at steps ``first, first + 1, ...`` up to the frontier.
         end: first step the action no longer takes part in (``None``: not scheduled).
-        waited: steps the start has waited so far.
-        forced: the start joins at the frontier through the hold rule.
+        waited, forced: steps the start has waited so far; it joins at the frontier by the hold rule.
         leaving: removal asked for; the action leaves at the first frontier step that allows it.
+        not_before: the start is not tried before this step (``None``: from the next one on).
     """
 
     key: object
@@ -239,11 +224,11 @@ class Track:
     waited: int = 0
     forced: bool = False
     leaving: bool = False
+    not_before: int | None = None
 
     def __post_init__(self):
-        p = self.seq.phases
-        self._n = len(p)
-        self._codes = [int(x) for x in p]
+        self._codes = [int(x) for x in self.seq.phases]
+        self._n = len(self._codes)
         self._cyclic = self.seq.cyclic
         self._bounds = [float(x) for x in self.seq.bounds]
         self._period = self.seq.total
@@ -284,8 +269,7 @@ class Track:
 
 
 class SyncEvent(NamedTuple):
-    """A log entry: ``kind`` in ``start``, ``wait``, ``force``, ``hold``, ``remove``, ``leaving``;
-    ``detail`` says more."""
+    """A log entry: ``kind`` in ``start``, ``wait``, ``force``, ``hold``, ``remove``, ``leaving``."""
 
     step: int
     kind: str
@@ -298,10 +282,9 @@ class Synchronizer:
 
     Usage: :meth:`request` a start (it is tried when the next step is entered, or at once when nothing
     plays), :meth:`enter_next` whenever the animation crosses a step boundary, :meth:`remove` an
-    action that has finished fading out. :attr:`phases` maps each synchronized step to its combined
-    phase; :attr:`current` is the step being played; :attr:`frontier` the last synchronized one;
-    :attr:`nominal` maps each step to its nominal duration (seconds of action time, see
-    :attr:`SyncConfig.tempo_hold`).
+    action that has finished fading out. :attr:`phases`: each synchronized step's combined phase;
+    :attr:`current`: the step played; :attr:`frontier`: the last synchronized one; :attr:`nominal`:
+    each step's nominal duration (s of action time, see :attr:`SyncConfig.tempo_hold`).
     """
 
     def __init__(self, config: SyncConfig = SyncConfig(), log: bool = True):
@@ -325,18 +308,18 @@ class Synchronizer:
 
     def active(self, step: int | None = None) -> list[Track]:
         """Tracks taking part in ``step`` (default: the current step)."""
-        s = self.current if step is None else step
-        return [t for t in self.tracks if t.elem(s) is not None]
+        return [t for t in self.tracks if t.elem(self.current if step is None else step) is not None]
 
     def phase(self, step: int) -> int:
         return self.phases.get(step, DS)
 
     # ------------------------------------------------------------------ commands
-    def request(self, key, seq: PhaseSequence, priority: float = 0.0) -> Track:
-        """Ask for an action to start; returns its :class:`Track` (``first`` is set once it starts)."""
+    def request(self, key, seq: PhaseSequence, priority: float = 0.0, not_before: int | None = None) -> Track:
+        """Ask for an action to start (while others play, not before step ``not_before`` when given);
+        returns its :class:`Track` (``first`` is set once it starts)."""
         if any(t.key == key for t in self.tracks + self.pending):
             raise ParameterError(f"an action with key {key!r} is already known to the synchronizer")
-        t = Track(key, seq, float(priority))
+        t = Track(key, seq, float(priority), not_before=not_before)
         if self.idle and not self.pending:  # nothing plays: a fresh step starts now with this action
             self.current += 1
             self._start_at(t, self.current, reset=True)
@@ -344,6 +327,23 @@ class Synchronizer:
         else:
             self.pending.append(t)
         return t
+
+    def split(self, played: float) -> bool:
+        """End the current step now, ``played`` s of action time into it, when one action plays alone:
+        it holds its element into a new next step (its later steps move one on, the frontier stays),
+        so that a start need not wait for the end of a long element. Returns whether it did."""
+        k, t = self.current, self.tracks[0] if len(self.tracks) == 1 else None
+        if t is None or t.end is not None or t.leaving or t.elem(k) is None or self.frontier <= k:
+            return False
+        t.elems.insert(k - t.first + 1, t.elem(k))
+        t.elems.pop()
+        for s in range(self.frontier - 1, k - 1, -1):
+            self.phases[s + 1] = self.phases[s]
+        self.nominal[k] = played
+        for s in range(k + 1, self.frontier + 1):
+            self.nominal[s] = self._nominal_at(s)
+        self._mark(k + 1)
+        return True
 
     def cancel(self, key) -> bool:
         """Drop a pending start; True when one was dropped."""
@@ -353,7 +353,7 @@ class Synchronizer:
 
     def remove(self, key, from_step: int | None = None) -> int | None:
         """The action stops taking part from ``from_step`` on (default: the next step; at the earliest the
-        current one, for an action whose weight is already zero). Returns the step it leaves at.
+        current one). Returns the step it leaves at.
 
         Removing an action relaxes its own constraints, but a flight element absorbs conflicts between
         the others (FLIGHT (+) ERR = FLIGHT): the removal is put off to the first step from which every
@@ -361,7 +361,7 @@ class Synchronizer:
         *leaving*: from the frontier on its candidate element is ``DS`` (the neutral) and it leaves at
         the first frontier step where the hold rule does not hold it (returns ``None`` then).
         """
-        if self.cancel(key):
+        if self.cancel(key):  # a pending start
             return None
         s0 = self.current + 1 if from_step is None else max(int(from_step), self.current)
         t = next((x for x in self.tracks if x.key == key), None)
@@ -390,10 +390,8 @@ class Synchronizer:
 
     def enter_next(self) -> None:
         """The animation enters step ``current + 1``: try pending starts, then synchronize one more step."""
-        self.current += 1
-        k = self.current
-        for t in [t for t in self.tracks if t.end is not None and t.end <= k]:
-            self.tracks.remove(t)
+        self.current = k = self.current + 1
+        self.tracks = [t for t in self.tracks if t.end is None or t.end > k]
         for s in [s for s in self.phases if s < k - 1]:
             del self.phases[s]
         if len(self.nominal) > NOMINAL_KEPT:
@@ -420,11 +418,11 @@ class Synchronizer:
     def _start_at(self, t: Track, k: int, reset: bool = False, first_elem: int = 0) -> None:
         """Lay elements ``e0 .. e0+nk-1`` at steps ``k .. k+nk-1`` (the frontier sync adds step ``k+nk``).
 
-        A cyclic action joining cyclic ones (``reset`` False) has only ``e0`` laid at ``k``: the steps
-        after it are synchronized again one by one (:meth:`_sync_frontier`), so that tempo holds can
-        spread a long element of the newcomer over the others' elements, or theirs over its elements.
-        Otherwise (or while an action is being removed: its removal was put off for the planned steps;
-        or one joined at a later step) the newcomer's elements are laid straight.
+        A cyclic action joining cyclic ones or standing ones (non-cyclic, double supports from ``k``
+        on), ``reset`` False, has only ``e0`` laid at ``k``: the steps after it are synchronized again
+        one by one (:meth:`_sync_frontier`), so that tempo holds can spread a long element over the
+        others'. Otherwise (or while an action is being removed, or one joined at a later step) the
+        newcomer's elements are laid straight.
         """
         nk = self.config.nk
         t.first = k
@@ -432,7 +430,8 @@ class Synchronizer:
         self.tracks.append(t)
         self._note(k, "start", t.key, f"after {t.waited} waits")
         others = [x for x in self.tracks if x is not t]
-        if (reset or self.config.tempo_hold <= 0 or not all(x.seq.cyclic for x in self.tracks)
+        if (reset or self.config.tempo_hold <= 0 or not t.seq.cyclic
+                or not all(x.seq.cyclic or {x.code(e) for e in x.elems[k - x.first:]} == {DS} for x in others)
                 or any(x.end is not None or x.leaving or x.first > k for x in others)):
             t.elems = list(range(first_elem, first_elem + nk))
             if reset:
@@ -478,16 +477,19 @@ class Synchronizer:
 
     def _tempo_holds(self, movers, joiners, old_e, nxt) -> set[int]:
         """Movers that hold their element for tempo (:attr:`SyncConfig.tempo_hold`): every action of
-        the step is cyclic, the element's duration is over ``tempo_hold`` times the nominal time its
-        steps have lasted, and holding it meets no other action's next single support of the other
-        foot. ``nxt`` is updated in place."""
+        the step is cyclic or stands (a non-cyclic action's double support; then only that is held),
+        the element's duration is over ``tempo_hold`` times the nominal time its steps have lasted, and
+        holding it meets no other action's next single support of the other foot. ``nxt`` is updated
+        in place."""
         ratio = self.config.tempo_hold
-        if ratio <= 0 or len(nxt) < 2 or not all(t.seq.cyclic for t in movers + joiners):
+        stand = [not t.seq.cyclic for t in movers]
+        if (ratio <= 0 or len(nxt) < 2 or all(stand) or not all(t.seq.cyclic for t in joiners)
+                or any(s and t.code(e) != DS for s, t, e in zip(stand, movers, old_e))):
             return set()
         f = self.frontier
         want = []
         for i, t in enumerate(movers):
-            if t.leaving:
+            if t.leaving or (any(stand) and not stand[i]):
                 continue
             t0, t1 = t.span(old_e[i])
             spent = (t1 - t0) - self._left_in(t, f) + self.nominal.get(f, 0.0)
@@ -506,14 +508,12 @@ class Synchronizer:
     def _try_starts(self, k: int) -> None:
         nk = self.config.nk
         for t in list(self.pending):
-            if t.forced:
+            if t.forced or (t.not_before is not None and k < t.not_before):
                 continue
             e0 = self._best_start(t, k)
             if e0 is not None:
                 self.pending.remove(t)
-                self._start_at(t, k, first_elem=e0)
-                # the new elements reach the frontier: extend the plan so the frontier sync below
-                # handles this action like the others
+                self._start_at(t, k, first_elem=e0)  # the frontier sync below extends its plan
                 continue
             t.waited += 1
             if t.waited > self.config.max_start_delay:

@@ -428,6 +428,32 @@ class WarpPlanner:
             self.sync.dirty = None
             self.plan(k + 1)
 
+    def split(self, now: float) -> bool:
+        """End the current step at ``now`` (:meth:`~kinodyn.blend.sync.Synchronizer.split`): the
+        segments being played stop there, at the action time and speed they reach (so the warp stays
+        C1), and the steps after it are planned again. Returns whether the synchronizer split it."""
+        k = self.sync.current
+        T = self.T
+        if not (k + 1 in T and T[k] < now < T[k + 1]) or len(self.timing) != 1:
+            return False
+        tm = next(iter(self.timing.values()))
+        seg = tm.current
+        if seg is None or seg.t0 != T[k]:
+            return False
+        c, u = seg.coef, now - seg.t0
+        h = float(eval_poly(c, u))
+        if not self.sync.split(h - tm.knots[k]):
+            return False
+        tm.current = Segment(seg.t0, now, c)
+        if self.keep_history and tm.segments:
+            tm.segments[-1] = tm.current
+        tm.knots[k + 1] = h
+        tm.tangent = {k + 1: (3.0 * c[3] * u + 2.0 * c[2]) * u + c[1]}
+        T[k + 1] = now
+        self.sync.dirty = None
+        self.plan(k + 1)
+        return True
+
     def freeze(self, k: int) -> None:
         """Fix the Hermite segment of every action present in step ``k``."""
         T = self.T
