@@ -11,9 +11,10 @@
 * ``us_per_character_frame``, ``physics_us_per_character_frame``, ``posing_us_per_character_frame``
   (and ``control_us_per_character_frame``) at that count;
 * ``ratio_to_bare_bodies``: that cost over the cost of MuJoCo stepping the same compiled model (the
-  same number of the same free ellipsoids on the same floor, the same timestep of 1/60 s, contact
-  settings and solver, the two ball slots) from its initial state with no controller, no pushes and
-  no posing (the bodies topple and lie), measured in the same run at the same count;
+  same number of the same free bodies, ellipsoids with their contact capsules, on the same floor, the
+  same timestep of 1/60 s, contact settings and solver, the two ball slots) from its initial state
+  with no controller, no pushes and no posing (the bodies topple and lie), measured in the same run
+  at the same count;
 * ``us_per_character_frame_N`` and ``bare_us_per_character_frame_N`` for each scaling count N (100 to
   10,000; the quick mode stops lower and reports only what it measured), ``contacts_per_character_N``
   and ``compile_s_N`` (wall seconds to build the crowd of N: from 1,000 up almost all of it MuJoCo
