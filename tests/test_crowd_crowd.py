@@ -64,7 +64,7 @@ def test_controller_forces_enter_as_mujocos_generalized_forces():
     for i in range(6):
         mujoco.mj_applyFT(m, d, f[i, :3], f[i, 3:], d.xipos[i + 1], i + 1, want)
     got = np.zeros((6, 6))
-    generalized_forces(c._qpos, f, got)
+    generalized_forces(d.qpos[:42].reshape(6, 7), f, got)
     np.testing.assert_allclose(got, want[:36].reshape(6, 6), atol=1e-9)
 
 
