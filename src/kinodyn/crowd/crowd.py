@@ -282,6 +282,9 @@ class Crowd:
             return
         who, f, local, until = (np.concatenate(x) for x in (pu.who, pu.force, pu.local, pu.until))
         live = until > self.time + 1e-9
+        if not live.any():
+            pu.who, pu.force, pu.local, pu.until = [], [], [], []
+            return
         who, f, local, until = who[live], f[live], local[live], until[live]
         pu.who, pu.force, pu.local, pu.until = [who], [f], [local], [until]
         from kinodyn.math import quat
