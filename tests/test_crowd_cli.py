@@ -79,3 +79,40 @@ def test_bench_judges_a_count_by_its_median_build(monkeypatch):
     builds = iter([0.010, 0.030, 0.031])
     points = {100: {"total": 0.001}, 500: {"total": 0.010}}  # one lucky build of 500 within the budget
     assert bench._search(points, 5, lambda s: None, builds=3) == 400  # 500 judged by its median build
+
+
+def test_bench_builds_again_only_the_counts_near_the_budget(monkeypatch):
+    """Counts within a factor of two of the frame budget are built again; a count far below or above
+    it is judged by its one build (builds differ by less than that), and candidates between the two
+    nearest counts are bisected."""
+    import kinodyn.crowd.bench as bench
+
+    calls = []
+
+    def fake(n, frames):
+        calls.append(n)
+        return {"total": 0.004 * n / 1000}
+
+    monkeypatch.setattr(bench, "measure", fake)
+    points = {n: {"total": 0.004 * n / 1000} for n in (100, 3000, 6000, 20000)}
+    best = bench._search(points, 5, lambda s: None, builds=3)
+    assert set(calls[:6]) == {3000} | {6000} and calls[:6] == [3000] * 3 + [6000] * 3
+    assert 100 not in calls and 20000 not in calls
+    assert 3000 <= best < 6000 and best * 0.004 / 1000 <= bench.FRAME_BUDGET
+
+
+def test_bench_arms_take_turns_on_one_bare_state(monkeypatch):
+    """The bare arm is timed in turns with the crowd's frames, stepping one state on (not a fresh one
+    per turn), for as many frames in all as the crowd."""
+    import kinodyn.crowd.bench as bench
+
+    turns, real = [], bench.measure_bare
+
+    def spy(model, substeps, frames, data=None):
+        turns.append((frames, data))
+        return real(model, substeps, frames, data)
+
+    monkeypatch.setattr(bench, "measure_bare", spy)
+    bench.measure(12, frames=25, warmup=2, block=10)
+    assert [f for f, _ in turns] == [10, 10, 5]
+    assert turns[0][1] is not None and all(d is turns[0][1] for _, d in turns)

@@ -8,8 +8,9 @@ from kinodyn.crowd.crowd import Crowd, CrowdConfig, Prop, grid
 from kinodyn.errors import ParameterError
 
 
-def test_characters_collide_with_each_other():
-    c = Crowd([[0.0, 0.0], [1.5, 0.0]], [0.0, np.pi], pose=False)
+@pytest.mark.parametrize("shape", ["capsule", "ellipsoid"])
+def test_characters_collide_with_each_other(shape):
+    c = Crowd([[0.0, 0.0], [1.5, 0.0]], [0.0, np.pi], pose=False, config=CrowdConfig(body_contact=shape))
     c.ai.kind[:] = b.GOTO
     c.ai.target[:] = [[3.0, 0.0], [-1.5, 0.0]]  # walk through each other
     gap = []
@@ -17,6 +18,54 @@ def test_characters_collide_with_each_other():
         c.step()
         gap.append(np.linalg.norm(c.state.r[0, :2] - c.state.r[1, :2]))
     assert min(gap) > 0.2, "the bodies may not pass through each other"
+
+
+@pytest.mark.parametrize("shape", ["capsule", "ellipsoid"])
+def test_each_pair_touches_through_its_contact_shape(shape):
+    """Characters touch each other through the configured shape only; the floor and balls touch the
+    ellipsoids (the capsule is as tall as the body, with the cross-section area of the ellipsoid)."""
+    import mujoco
+
+    c = Crowd([[0.0, 0.0], [0.22, 0.0]], pose=False, config=CrowdConfig(balls=1, body_contact=shape))
+    c.throw([-0.6, 0.0, 0.8], [3.0, 0.0, 0.0])
+    m = c.model
+    kinds = set()
+    for _ in range(30):
+        c.step()
+        con = c.data.contact[: c.data.ncon]
+        kinds |= {tuple(sorted((int(m.geom_type[a]), int(m.geom_type[b])))) for a, b in zip(con.geom1, con.geom2)}
+    g = mujoco.mjtGeom
+    plane, sphere, ell, cap = (int(t) for t in (g.mjGEOM_PLANE, g.mjGEOM_SPHERE, g.mjGEOM_ELLIPSOID, g.mjGEOM_CAPSULE))
+    between = (cap, cap) if shape == "capsule" else (ell, ell)
+    assert kinds == {(plane, ell), between, (sphere, ell), (plane, sphere)}, kinds
+    if shape == "capsule":
+        capsule = m.geom_type == cap
+        radius, half = c.body.contact_capsule
+        np.testing.assert_allclose(m.geom_size[capsule][:, :2], [[radius, half]] * 2)
+        np.testing.assert_allclose(np.pi * radius ** 2, np.pi * c.body.depth * c.body.width)
+        np.testing.assert_allclose(radius + half, c.body.height / 2)
+
+
+def test_controller_forces_enter_as_mujocos_generalized_forces():
+    """:func:`generalized_forces` against MuJoCo's own mapping of a force and torque at the centre of
+    mass (``mj_applyFT``, what ``xfrc_applied`` does) for tilted, turned bodies."""
+    import mujoco
+
+    from kinodyn.crowd.crowd import generalized_forces
+
+    c = Crowd(grid(6, spacing=2.0), np.linspace(-3, 3, 6), pose=False)
+    c.push(np.arange(6), np.random.default_rng(2).normal(0, 300, (6, 3)), point=c.state.r + [0, 0, 0.5])
+    c.step(25)
+    assert np.abs(c.state.theta_x).max() > 0.05 and np.ptp(c.state.heading) > 1.0
+    m, d = c.model, c.data
+    mujoco.mj_forward(m, d)  # the bodies' frames and Jacobians at the current state, as mj_step sees them
+    f = np.random.default_rng(3).normal(0, 100, (6, 6))
+    want = np.zeros(m.nv)
+    for i in range(6):
+        mujoco.mj_applyFT(m, d, f[i, :3], f[i, 3:], d.xipos[i + 1], i + 1, want)
+    got = np.zeros((6, 6))
+    generalized_forces(d.qpos[:42].reshape(6, 7), f, got)
+    np.testing.assert_allclose(got, want[:36].reshape(6, 6), atol=1e-9)
 
 
 def test_a_ball_knocks_a_character():
@@ -101,6 +150,8 @@ def test_bad_crowd_input():
         Crowd([[0.0, 0.0]], pose=False, config=CrowdConfig(balls=0)).throw([0, 0, 1], [1, 0, 0])
     with pytest.raises(ParameterError, match="CrowdConfig.substeps must be an int >= 1"):
         CrowdConfig(substeps=0)
+    with pytest.raises(ParameterError, match=r"CrowdConfig.body_contact must be one of \('capsule', 'ellipsoid'\)"):
+        CrowdConfig(body_contact="box")
 
 
 def test_compiled_behaviours_equal_the_numpy_ones():

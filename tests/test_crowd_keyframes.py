@@ -176,6 +176,45 @@ def test_interpolation_batched_equals_one_by_one(ks):
         np.testing.assert_array_equal(pi[0], p[i])
 
 
+@pytest.mark.parametrize("spread", [False, True])
+def test_interpolation_does_not_depend_on_the_signs_of_the_quaternions(ks, spread):
+    """q and -q are one rotation: flipping keyframes' quaternions changes no interpolated rotation, and
+    each keyframe is returned with its own sign, whether one hemisphere serves every keyframe (the
+    built-in set) or two neighbouring keyframes of a joint lie more than half a turn apart through
+    the identity (a table per keyframe; the blend between them goes the short way)."""
+    import dataclasses
+
+    from kinodyn.crowd.interpolate import aligned_keys
+
+    rot = np.array(ks.key_rot)
+    lv = next(int(l) for l in range(ks.plane_start[0, 0], ks.plane_start[0, 0] + ks.plane_count[0, 0])
+              if ks.level_count[l] >= 2)
+    a = int(ks.level_start[lv])
+    j = ks.skeleton.index("LeftArm")
+    if spread:  # 20 degrees apart through the half turn, 340 through the identity
+        rot[a, j] = quat.from_axis_angle([0.0, 0.0, 1.0], np.radians(170.0))
+        rot[a + 1, j] = quat.from_axis_angle([0.0, 0.0, -1.0], np.radians(170.0))
+    rng = np.random.default_rng(5)
+    base = dataclasses.replace(ks, key_rot=rot)
+    flipped = dataclasses.replace(ks, key_rot=rot * np.where(rng.random(rot.shape[:2]) < 0.5, -1.0, 1.0)[..., None])
+    for s in (base, flipped):
+        assert aligned_keys(s)[0].shape[0] == (len(rot) if spread else 1)
+    pts = rng.uniform([-1.6, -1.2, 0, 0], [1.6, 1.2, 1, 1], (300, 4))
+    rb, pb = interpolate(base, pts, 0)
+    rf, pf = interpolate(flipped, pts, 0)
+    np.testing.assert_allclose(quat.angle_between(rf, rb), 0.0, atol=1e-6)
+    np.testing.assert_allclose(pf, pb, atol=_TOL)
+    at, beh, _, _ = _own(flipped)
+    r, _ = interpolate(flipped, at, beh)
+    np.testing.assert_allclose(r, flipped.key_rot[~flipped.key_shared], atol=1e-7)
+    between = np.zeros((21, 4))
+    between[:, 0] = ks.level_tilt[lv]
+    between[:, 3] = np.linspace(ks.key_phase[a], ks.key_phase[a + 1], 21)
+    r, _ = interpolate(flipped, between, 0)
+    gap = quat.angle_between(rot[a, j], rot[a + 1, j])
+    assert np.all(quat.angle_between(r[:, j], rot[a, j]) <= gap + np.radians(8.0)), "the short way"
+
+
 def test_side_weight_selects_a_plane(ks):
     pts = np.array([[0.0, 0.0, 0.375, 0.25]])
     fwd, _ = interpolate(ks, pts, 0, side_weight=0.0)

@@ -9,6 +9,13 @@ sideways, and the sides and top are convex so a fallen body rolls onto its flatt
 face up or face down, never on its side (lying on the side or standing on the head is an unstable
 rest of an ellipsoid).
 
+Between characters the contact shape is by default a capsule of the same height whose radius is the
+geometric mean of the ellipsoid's depth and width (the same cross-section area;
+:attr:`BodyConfig.contact_capsule`): MuJoCo solves capsule pairs in closed form, while each
+ellipsoid pair takes an iterative convex search (GJK, then EPA for the depth): 0.7 of the 2.7 us
+per character and step of 5,000 characters 1.1 m apart. The floor, the props and the balls always
+touch the ellipsoid itself, so tipping, falling and landing are the ellipsoid's.
+
 Conventions (kinodyn's, Z up): the body frame Sr has +X forward (the face), +Y left, +Z up along the
 long axis; its origin is the centre of mass, so MuJoCo's free-joint ``qpos[:3]`` is ``r``. The paper's
 frame Sc (``e_xc``, ``e_zc`` on the floor, ``e_yc`` up) is here the *heading frame*: ``forward`` (the
@@ -97,6 +104,14 @@ class BodyConfig:
     def shape_offset(self) -> np.ndarray:
         """Ellipsoid centre in the body frame (relative to the centre of mass), ``(3,)`` metres."""
         return np.array([0.0, 0.0, 0.5 * self.height - self.l])
+
+    @property
+    def contact_capsule(self) -> tuple[float, float]:
+        """``(radius, half_length)`` of the capsule that stands for the body in contacts with other
+        characters (module docstring): radius ``sqrt(depth * width)``, end to end as tall as the body,
+        centred on the ellipsoid, metres."""
+        r = float(np.sqrt(self.depth * self.width))
+        return r, max(0.0, 0.5 * self.height - r)
 
     @classmethod
     def from_skeleton(cls, skeleton, mass: float = 40.0, **kw) -> BodyConfig:

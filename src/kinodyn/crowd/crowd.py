@@ -10,7 +10,12 @@ characters in a frame.
 
 The feet are the controller's: the floor itself is frictionless for the characters (MuJoCo contact
 dimension 1), so the only horizontal floor force on a body is the bounded friction force of section
-4.2. Characters touch each other frictionlessly; balls and props have friction.
+4.2. Characters touch each other frictionlessly, through their contact capsules by default
+(:attr:`CrowdConfig.body_contact`, :attr:`~kinodyn.crowd.body.BodyConfig.contact_capsule`); balls and
+props have friction and touch the ellipsoids. The controller's forces and the pushes enter MuJoCo as
+generalized forces of the free joints (``qfrc_applied``: the force in world axes, the torque in the
+body's), which is what MuJoCo makes of the same force and torque at the centre of mass given as
+``xfrc_applied``, without a Jacobian per body each step.
 
 :class:`Crowd` is the one mutable simulator here; it says what it changes. Units: metres, seconds,
 radians, newtons, kilograms; world Z up.
@@ -37,8 +42,15 @@ from kinodyn.crowd.controller import (
 from kinodyn.crowd.interpolate import interpolate_prepared, scratch
 from kinodyn.crowd.keyframes import KeyframeSet, builtin_keyframes, travel
 from kinodyn.errors import ParameterError, SimulationDivergedError
+from kinodyn.math.kernels import qrot_inv
 
-__all__ = ["Crowd", "CrowdConfig", "Prop", "grid"]
+__all__ = ["BODY_CONTACTS", "Crowd", "CrowdConfig", "Prop", "generalized_forces", "grid"]
+
+BODY_CONTACTS = ("capsule", "ellipsoid")
+# contact groups (MuJoCo contype / conaffinity bits): a pair collides when one's type meets the other's
+# affinity. The floor, props and balls touch the ellipsoids; the characters touch each other through
+# one shape only (their capsules, or their ellipsoids); balls touch balls.
+_WORLD, _SHAPE, _PROXY = 1, 2, 4
 
 
 @dataclass(frozen=True)
@@ -57,6 +69,10 @@ class CrowdConfig:
         still_speed: m/s under which a balancing character that is asked to stay is *still*: the AI
             then shows it with the standing-up behaviour, whose keyframe at zero tilt is the standing
             pose (section 6.1: the AI picks B; walking resumes B = walking as soon as it moves).
+        body_contact: the shape with which characters touch each other: ``"capsule"`` (their contact
+            capsules, solved in closed form) or ``"ellipsoid"`` (the ellipsoids themselves, by MuJoCo's
+            iterative convex search: the same shape as with the floor, at about twice the physics cost
+            of a dense crowd).
     """
 
     fps: float = 60.0
@@ -68,8 +84,11 @@ class CrowdConfig:
     side_halflife: float = 0.15
     on_floor_margin: float = 0.04
     still_speed: float = 0.15
+    body_contact: str = "capsule"
 
     def __post_init__(self):
+        if self.body_contact not in BODY_CONTACTS:
+            raise ParameterError(f"CrowdConfig.body_contact must be one of {BODY_CONTACTS}, got {self.body_contact!r}")
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise ParameterError(f"CrowdConfig.fps must be positive, got {self.fps!r}")
         if not (isinstance(self.substeps, int) and self.substeps >= 1):
@@ -112,8 +131,18 @@ def _build_model(pos: np.ndarray, heading: np.ndarray, body: BodyConfig, cfg: Cr
     # props, so it converges in a couple of sweeps; Newton's sparse Cholesky of its Hessian cost
     # more than everything else in a step (measured with kinodyn bench crowd).
     spec.option.solver = mujoco.mjtSolver.mjSOL_PGS
+    # Each character has two geoms, so MuJoCo's midphase would test the bounding-box trees of every
+    # pair of bodies the broadphase finds (the floor's with each character among them) before the
+    # geoms' own bounding spheres; the contact groups already keep each pair to one geom pair, so
+    # the trees only cost (a third of the collision time of 5,000 characters) and find nothing new.
+    spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE
     w = spec.worldbody
-    w.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], condim=1)
+    w.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], condim=1, contype=_WORLD,
+               conaffinity=_SHAPE)
+    capsule = cfg.body_contact == "capsule"
+    # the ellipsoids touch each other only when they are the characters' contact shape
+    shape_bits = dict(contype=_SHAPE | (0 if capsule else _PROXY), conaffinity=_WORLD | (0 if capsule else _PROXY))
+    radius, half = body.contact_capsule
     for (x, y), h in zip(pos, heading):
         b = w.add_body(pos=[x, y, body.l], quat=[np.cos(h / 2), 0, 0, np.sin(h / 2)])
         b.add_freejoint()
@@ -122,15 +151,19 @@ def _build_model(pos: np.ndarray, heading: np.ndarray, body: BodyConfig, cfg: Cr
         b.inertia = [body.inertia] * 3
         b.ipos = [0.0, 0.0, 0.0]
         b.add_geom(type=mujoco.mjtGeom.mjGEOM_ELLIPSOID, size=list(body.semi_axes),
-                   pos=list(body.shape_offset), condim=1, density=0.0)
+                   pos=list(body.shape_offset), condim=1, density=0.0, **shape_bits)
+        if capsule:
+            b.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[radius, half, 0.0], pos=list(body.shape_offset),
+                       condim=1, density=0.0, contype=_PROXY, conaffinity=_PROXY, group=3)
     for k in range(cfg.balls):
         b = w.add_body(pos=[-1000.0 - 3 * k, -1000.0, cfg.ball_radius])
         b.add_freejoint()
         b.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[cfg.ball_radius, 0, 0], mass=cfg.ball_mass,
-                   condim=3, friction=[0.6, 0.005, 0.0001])
+                   condim=3, friction=[0.6, 0.005, 0.0001], contype=_WORLD, conaffinity=_WORLD | _SHAPE)
     for p in props:
         kind = mujoco.mjtGeom.mjGEOM_BOX if p.kind == "box" else mujoco.mjtGeom.mjGEOM_CYLINDER
-        w.add_geom(type=kind, pos=list(p.pos), size=list(p.size), condim=3, friction=[0.8, 0.005, 0.0001])
+        w.add_geom(type=kind, pos=list(p.pos), size=list(p.size), condim=3, friction=[0.8, 0.005, 0.0001],
+                   contype=_WORLD, conaffinity=_SHAPE)
     model = spec.compile()
     return model, mujoco.MjData(model)
 
@@ -176,7 +209,7 @@ class Crowd:
         self.time, self.frame = 0.0, 0
         self._qpos = self.data.qpos[: 7 * n].reshape(n, 7)
         self._qvel = self.data.qvel[: 6 * n].reshape(n, 6)
-        self._xfrc = self.data.xfrc_applied[1: n + 1]
+        self._qfrc = self.data.qfrc_applied[: 6 * n].reshape(n, 6)
         rng = np.random.default_rng(seed)
         self.ai = new_ai(n, head, ai, rng)
         self.control_state = new_control_state(n)
@@ -249,14 +282,17 @@ class Crowd:
             return
         who, f, local, until = (np.concatenate(x) for x in (pu.who, pu.force, pu.local, pu.until))
         live = until > self.time + 1e-9
+        if not live.any():
+            pu.who, pu.force, pu.local, pu.until = [], [], [], []
+            return
         who, f, local, until = who[live], f[live], local[live], until[live]
         pu.who, pu.force, pu.local, pu.until = [who], [f], [local], [until]
         from kinodyn.math import quat
 
         s = self.state
         arm = quat.mul_vec(s.quat[who], local)
-        np.add.at(self._xfrc, (who, slice(0, 3)), f)
-        np.add.at(self._xfrc, (who, slice(3, 6)), np.cross(arm, f))
+        np.add.at(self._forces, (who, slice(0, 3)), f)
+        np.add.at(self._forces, (who, slice(3, 6)), np.cross(arm, f))
 
     # ------------------------------------------------------------------ stepping
     def step(self, frames: int = 1) -> None:
@@ -273,8 +309,8 @@ class Crowd:
             cs = self.control_state
             control_kernel(self._qpos, self._qvel, self._on_floor, v, h, cs.mode, cs.timer, cs.stand_from,
                            self._params, self.dt, self._forces)
-            self._xfrc[:] = self._forces
             self._apply_pushes()
+            generalized_forces(self._qpos, self._forces, self._qfrc)
             t1 = time.thread_time()
             mujoco.mj_step(self.model, self.data, nstep=cfg.substeps)
             t2 = time.thread_time()
@@ -335,6 +371,19 @@ class Crowd:
         return [Motion(skeleton=self.keyframes.skeleton, root_pos=rec["root_pos"][:, i].astype(np.float64),
                        local_rot=rec["local_rot"][:, i].astype(np.float64), fps=self.config.fps, name=names[i])
                 for i in range(self.n)]
+
+
+@numba.njit(cache=True)
+def generalized_forces(qpos, forces, qfrc):
+    """The free joints' generalized forces ``qfrc (N, 6)`` of ``forces (N, 6)`` (force, torque) at the
+    centres of mass in world axes: the force as it is, the torque turned into the body's axes (MuJoCo's
+    free-joint angular dofs), with ``qpos (N, 7)`` the joints' positions. The bodies' frames are at
+    their centres of mass, so this is exactly MuJoCo's ``xfrc_applied`` mapping."""
+    for i in range(qpos.shape[0]):
+        nq = np.sqrt(qpos[i, 3] ** 2 + qpos[i, 4] ** 2 + qpos[i, 5] ** 2 + qpos[i, 6] ** 2)
+        qfrc[i, 0], qfrc[i, 1], qfrc[i, 2] = forces[i, 0], forces[i, 1], forces[i, 2]
+        qfrc[i, 3], qfrc[i, 4], qfrc[i, 5] = qrot_inv(qpos[i, 3] / nq, qpos[i, 4] / nq, qpos[i, 5] / nq,
+                                                      qpos[i, 6] / nq, forces[i, 3], forces[i, 4], forces[i, 5])
 
 
 @numba.njit(cache=True)

@@ -42,6 +42,8 @@ PHASE_SCALE = 0.25
 #: stretched in between, so the blend stays continuous.
 SIDE_DEAD_ZONE = 0.1
 MAX_TERMS = 32  # behaviours (2 blended) x planes (2) x levels (2) x spline keys (4)
+#: chunks of points the compiled kernel runs in parallel, each with one row of scratch
+SCRATCH_CHUNKS = 64
 
 
 @numba.njit(cache=True, inline="always")
@@ -51,7 +53,7 @@ def _push(k, w, idx, wts, m):
     return m + 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _level_terms(lv, phase, w, key_phase, level_start, level_count, idx, wts, m):
     """Add the Catmull-Rom terms of one periodic level at ``phase``; return the new term count."""
     s, c = level_start[lv], level_count[lv]
@@ -83,7 +85,7 @@ def _level_terms(lv, phase, w, key_phase, level_start, level_count, idx, wts, m)
     return m
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _plane_terms(b, p, tilt, phase, w, plane_start, plane_count, level_tilt, key_phase, level_start,
                  level_count, idx, wts, m):
     """Add the terms of one behaviour's plane: its two levels around ``tilt``, blended linearly."""
@@ -109,7 +111,7 @@ def _cyc(d):
     return min(d, 1.0 - d)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _side_weight(tx, tz, dx, dz, given, tilt_scale, phase_scale):
     if given >= 0.0:  # a caller's weight, with dead zones at both ends (one plane only: half the work)
         return min(1.0, max(0.0, (given - SIDE_DEAD_ZONE) / (1.0 - 2.0 * SIDE_DEAD_ZONE)))
@@ -119,51 +121,74 @@ def _side_weight(tx, tz, dx, dz, given, tilt_scale, phase_scale):
 
 
 @numba.njit(cache=True, fastmath=True)
-def _accumulate(i, m, idx, wts, aligned, key_root, out_rot, out_root):
+def _accumulate(i, m, idx, wts, aligned, ref_sign, key_root, out_rot, out_root):
     """Weighted sum of the terms' poses (quaternions on the first term's hemisphere), normalized.
 
     ``aligned[r, k]`` is keyframe ``k``'s rotations ``(J * 4,)`` each turned onto the hemisphere of
-    keyframe ``r``'s (:func:`aligned_keys`), so the sum is a plain weighted sum of rows.
+    keyframe ``r``'s, times ``ref_sign[r]`` (:func:`aligned_keys`; one row ``aligned[0]`` serves every
+    ``r`` when the set allows), so the sum is a plain weighted sum of rows.
     """
     nj4 = aligned.shape[2]
     r = idx[0]
+    a = aligned[0] if aligned.shape[0] == 1 else aligned[r]
+    o = out_rot[i]
     w = wts[0]
-    row = aligned[r, r]
+    row = a[r]
     for c in range(nj4):
-        out_rot[i, c] = w * row[c]
-    for c in range(3):
-        out_root[i, c] = w * key_root[r, c]
+        o[c] = w * row[c]
+    rx, ry, rz = w * key_root[r, 0], w * key_root[r, 1], w * key_root[r, 2]
     for t in range(1, m):
         k, w = idx[t], wts[t]
-        row = aligned[r, k]
+        row = a[k]
         for c in range(nj4):
-            out_rot[i, c] += w * row[c]
-        for c in range(3):
-            out_root[i, c] += w * key_root[k, c]
+            o[c] += w * row[c]
+        rx += w * key_root[k, 0]
+        ry += w * key_root[k, 1]
+        rz += w * key_root[k, 2]
+    out_root[i, 0], out_root[i, 1], out_root[i, 2] = rx, ry, rz
     for j in range(0, nj4, 4):
-        q0, q1, q2, q3 = out_rot[i, j], out_rot[i, j + 1], out_rot[i, j + 2], out_rot[i, j + 3]
+        q0, q1, q2, q3 = o[j], o[j + 1], o[j + 2], o[j + 3]
         nrm = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         if nrm < 1e-12:
-            out_rot[i, j], out_rot[i, j + 1], out_rot[i, j + 2], out_rot[i, j + 3] = 1.0, 0.0, 0.0, 0.0
+            o[j], o[j + 1], o[j + 2], o[j + 3] = 1.0, 0.0, 0.0, 0.0
         else:
-            inv = 1.0 / nrm
+            inv = ref_sign[r, j // 4] / nrm
             for c in range(4):
-                out_rot[i, j + c] *= inv
+                o[j + c] *= inv
 
 
 @lru_cache(maxsize=8)
-def aligned_keys(ks: KeyframeSet, dtype=np.float64) -> np.ndarray:
-    """``(K, K, J * 4)``: row ``[r, k]`` holds keyframe ``k``'s joint rotations, each negated where its
-    dot product with keyframe ``r``'s is negative (the same rotation on ``r``'s hemisphere), as
-    ``dtype``."""
+def aligned_keys(ks: KeyframeSet, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """The keyframes' rotations on the hemispheres the interpolation sums them on.
+
+    With ``s[r, k, j] = +-1`` the sign of the dot product of keyframes ``r`` and ``k``'s rotations of
+    joint ``j``, the sum around reference keyframe ``r`` adds ``s[r, k, j] * key_rot[k, j]``. When
+    each joint's rotations, once turned onto the hemisphere of keyframe 0's (``c[k, j] = s[0, k, j]
+    key_rot[k, j]``), have positive dot products with each other, ``s[r, k, j] = s[0, r, j] s[0, k, j]``
+    and one table serves every reference: ``c``, with the sum's sign restored by ``s[0, r, j]``. Any
+    other set keeps a row per reference.
+
+    Returns:
+        ``(aligned (R, K, J * 4), ref_sign (K, J))`` of ``dtype``: ``R = 1`` with ``aligned[0] = c``
+        and ``ref_sign = s[0]``, or ``R = K`` with ``aligned[r, k] = s[r, k] key_rot[k]`` and
+        ``ref_sign = 1``; read-only.
+    """
     rot = np.asarray(ks.key_rot, np.float64)
-    sign = np.where(np.einsum("rjc,kjc->rkj", rot, rot) >= 0.0, 1.0, -1.0)
-    out = (sign[..., None] * rot[None]).reshape(rot.shape[0], rot.shape[0], -1).astype(dtype)
+    k, j = rot.shape[:2]
+    canon = np.where(np.einsum("jc,kjc->kj", rot[0], rot) >= 0.0, 1.0, -1.0)
+    c = canon[..., None] * rot
+    if np.all(np.einsum("rjc,kjc->rkj", c, c) > 0.0):
+        out, ref = c.reshape(1, k, j * 4), canon
+    else:
+        sign = np.where(np.einsum("rjc,kjc->rkj", rot, rot) >= 0.0, 1.0, -1.0)
+        out, ref = (sign[..., None] * rot[None]).reshape(k, k, j * 4), np.ones((k, j))
+    out, ref = out.astype(dtype), ref.astype(dtype)
     out.setflags(write=False)
-    return out
+    ref.setflags(write=False)
+    return out, ref
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _to_frame(i, pos, q, out_rot, out_root):
     """Show pose ``i`` in the frame (``pos (N, 3)``, ``q (N, 4)``): root rotation and position."""
     w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
@@ -180,29 +205,32 @@ def _to_frame(i, pos, q, out_rot, out_root):
 
 
 @numba.njit(cache=True, parallel=True)
-def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, aligned, key_phase,
+def _interp_kernel(points, bweights, side_w, tilt_scale, phase_scale, key_root, aligned, ref_sign, key_phase,
                    level_tilt, level_start, level_count, plane_start, plane_count, idx, wts, out_rot, out_root,
                    frame_pos, frame_quat, in_frame):
     nb = bweights.shape[1]
-    for i in numba.prange(points.shape[0]):
-        tx, tz, dx, dz = points[i, 0], points[i, 1], points[i, 2], points[i, 3]
-        m = 0
-        for b in range(nb):
-            wb = bweights[i, b]
-            if wb == 0.0:
-                continue
-            hf, hs = plane_count[b, 0] > 0, plane_count[b, 1] > 0
-            ws = _side_weight(tx, tz, dx, dz, side_w[i], tilt_scale, phase_scale) if hf and hs else (
-                0.0 if hf else 1.0)
-            if ws < 1.0:
-                m = _plane_terms(b, 0, tx, dz, wb * (1.0 - ws), plane_start, plane_count, level_tilt,
-                                 key_phase, level_start, level_count, idx[i], wts[i], m)
-            if ws > 0.0:
-                m = _plane_terms(b, 1, tz, dx, wb * ws, plane_start, plane_count, level_tilt, key_phase,
-                                 level_start, level_count, idx[i], wts[i], m)
-        _accumulate(i, m, idx[i], wts[i], aligned, key_root, out_rot, out_root)
-        if in_frame:
-            _to_frame(i, frame_pos, frame_quat, out_rot, out_root)
+    n, chunks = points.shape[0], idx.shape[0]
+    for ch in numba.prange(chunks):  # one scratch row per chunk of characters
+        ti, tw = idx[ch], wts[ch]
+        for i in range(ch * n // chunks, (ch + 1) * n // chunks):
+            tx, tz, dx, dz = points[i, 0], points[i, 1], points[i, 2], points[i, 3]
+            m = 0
+            for b in range(nb):
+                wb = bweights[i, b]
+                if wb == 0.0:
+                    continue
+                hf, hs = plane_count[b, 0] > 0, plane_count[b, 1] > 0
+                ws = _side_weight(tx, tz, dx, dz, side_w[i], tilt_scale, phase_scale) if hf and hs else (
+                    0.0 if hf else 1.0)
+                if ws < 1.0:
+                    m = _plane_terms(b, 0, tx, dz, wb * (1.0 - ws), plane_start, plane_count, level_tilt,
+                                     key_phase, level_start, level_count, ti, tw, m)
+                if ws > 0.0:
+                    m = _plane_terms(b, 1, tz, dx, wb * ws, plane_start, plane_count, level_tilt, key_phase,
+                                     level_start, level_count, ti, tw, m)
+            _accumulate(i, m, ti, tw, aligned, ref_sign, key_root, out_rot, out_root)
+            if in_frame:
+                _to_frame(i, frame_pos, frame_quat, out_rot, out_root)
 
 
 def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
@@ -249,16 +277,17 @@ def interpolate(ks: KeyframeSet, points, behaviour, side_weight=None, out=None,
         if fpos.shape != (n, 3) or fquat.shape != (n, 4):
             raise ParameterError(f"frame must be ((N, 3), (N, 4)) arrays for N = {n}, got {fpos.shape}, {fquat.shape}")
     _interp_kernel(pts, bw, np.ascontiguousarray(sw), float(tilt_scale), float(phase_scale), ks.key_root,
-                   aligned_keys(ks), ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count,
+                   *aligned_keys(ks), ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count,
                    ks.plane_start, ks.plane_count, idx, wts, rot.reshape(n, -1), root, fpos, fquat, in_frame)
     return rot, root
 
 
 def scratch(n: int, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
-    """Working arrays of the compiled interpolation for ``n`` points: term indices ``(n, MAX_TERMS)``
-    and weights of ``dtype``, the precision of the rotations it sums (a caller posing every frame keeps
-    them)."""
-    return np.empty((n, MAX_TERMS), np.int64), np.empty((n, MAX_TERMS), dtype)
+    """Working arrays of the compiled interpolation for ``n`` points: term indices ``(C, MAX_TERMS)``
+    and weights of ``dtype``, the precision of the rotations it sums, one row per chunk of points
+    (``C = min(n, SCRATCH_CHUNKS)``; a caller posing every frame keeps them)."""
+    c = max(1, min(int(n), SCRATCH_CHUNKS))
+    return np.empty((c, MAX_TERMS), np.int64), np.empty((c, MAX_TERMS), dtype)
 
 
 def interpolate_prepared(ks: KeyframeSet, points, bweights, side_weight, work, out, frame) -> None:
@@ -275,8 +304,8 @@ def interpolate_prepared(ks: KeyframeSet, points, bweights, side_weight, work, o
         frame: ``(body_pos (N, 3), body_quat (N, 4))`` C-contiguous float64.
     """
     rot, root = out
-    aligned = aligned_keys(ks, work[1].dtype.type)
-    _interp_kernel(points, bweights, side_weight, TILT_SCALE, PHASE_SCALE, ks.key_root, aligned,
+    aligned, ref_sign = aligned_keys(ks, work[1].dtype.type)
+    _interp_kernel(points, bweights, side_weight, TILT_SCALE, PHASE_SCALE, ks.key_root, aligned, ref_sign,
                    ks.key_phase, ks.level_tilt, ks.level_start, ks.level_count, ks.plane_start,
                    ks.plane_count, work[0], work[1], rot.reshape(rot.shape[0], -1), root, frame[0], frame[1],
                    True)

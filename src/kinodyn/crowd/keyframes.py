@@ -104,9 +104,9 @@ def travel(d_side, d_front, vel, forward, left, dt: float) -> tuple[np.ndarray, 
         forward, left: ``(N, 3)`` the heading frame's ``e_zc`` and ``e_xc``.
         dt: seconds.
     """
-    v = np.asarray(vel, dtype=np.float64)[:, :2]
-    return (d_side + dt * np.einsum("ni,ni->n", v, left[:, :2]),
-            d_front + dt * np.einsum("ni,ni->n", v, forward[:, :2]))
+    v = np.asarray(vel, dtype=np.float64)
+    vx, vy = v[:, 0], v[:, 1]
+    return (d_side + dt * (vx * left[:, 0] + vy * left[:, 1]), d_front + dt * (vx * forward[:, 0] + vy * forward[:, 1]))
 
 
 @dataclass(frozen=True, eq=False)
