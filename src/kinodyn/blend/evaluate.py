@@ -466,7 +466,7 @@ def causes_table(figs: dict) -> str:
     add up to ``slide``, by cause and by frame group, the transitions' by cause, and each group's share of
     the planted foot-frames."""
     cols = ([(f"sliding_{c}_cm_s", c) for c in CAUSES] + [(f"sliding_{g}_cm_s", g[:5]) for g in GROUPS]
-            + [(f"sliding_transition_{c}_cm_s", f"tr_{c}") for c in CAUSES]
+            + [(f"sliding_transition_{c}_cm_s", f"tr_{c[:4]}") for c in CAUSES]
             + [(f"share_{g}", f"%{g[:5]}") for g in GROUPS])
     lines = [("sliding by cause (cm/s, adding up to slide): own = the source clip's own, warp = the time warp, "
               "weights = weight shifting between feet at different places, root = root motion unlike the "
