@@ -245,10 +245,11 @@ class Character:
         locomotion cycle of no higher priority plays (``None``: the next one, as any start): the one of
         the planned steps within :data:`CLOSING_DELAY` from which, over ``new``'s ramp-in (a quarter,
         half and three quarters into it, both at their own speed), the cycle's feet best match
-        ``new``'s first frames, relative to the root. The cycle plays on at its own speed until then; at the start it leaves the
-        synchronizer and plays on, at its speed, while it fades (:meth:`_closed`), so its stride
-        closes there (the swing foot lands beside the stance foot) as in a stop's closing step
-        (:meth:`_closing_stop`), and ``new`` plays at its own speed from its first frame."""
+        ``new``'s first frames, relative to the root. The cycle plays on at its own speed until then;
+        at the start it leaves the synchronizer and plays on, at its speed, while it fades
+        (:meth:`_closed`), so its stride closes there (the swing foot lands beside the stance foot) as
+        in a stop's closing step (:meth:`_closing_stop`), and ``new`` plays at its own speed from its
+        first frame."""
         seq = new.seq
         if (not self.config.closing_step or self.neutral_feet is None or seq.cyclic
                 or int(seq.phases[0]) != DS or float(seq.durations[0]) < 0.5 * new.ramp_in):
@@ -277,8 +278,8 @@ class Character:
     def _closed(self, new: ActionState, tk: float) -> None:
         """``new`` started at ``tk`` at a closing step (:meth:`_closing_start`): the cycle it closes
         leaves the synchronizer (from the current step) and plays on at its own speed from its action
-        time at ``tk`` (:attr:`ActionState.free`) while it fades out: from ``tk`` when it was stopped
-        while ``new`` waited (a hand-over), else once ``new`` has faded in (unless stopped earlier)."""
+        time at ``tk`` (:attr:`ActionState.free`) while it fades out, from ``tk`` (a hand-over's stop
+        sets that in :meth:`advance`; a cycle stopped before ``tk`` keeps its earlier stop)."""
         run = self.actions.get(self.closing.pop(new.key, None))
         tm = None if run is None else self.planner.timing.get(run.key)
         if tm is None or tm.current is None or run.free is not None:
