@@ -10,7 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, combine_all
-from kinodyn.blend.sync import SyncConfig, Synchronizer, _result, appendix_set, brute_force_holds, resolve
+from kinodyn.blend.holds import appendix_set, brute_force_holds, resolve, step_phase
+from kinodyn.blend.sync import SyncConfig, Synchronizer
 from kinodyn.errors import ParameterError
 
 SUPPORT = [int(RS), int(LS), int(DS), int(FLIGHT)]
@@ -36,7 +37,7 @@ def test_resolution_always_exists_and_progresses_exhaustively():
         for prio in itertools.permutations(range(len(old))):
             r = resolve(old, nxt, prio)
             assert r.phase != ERR and len(r.held) < len(old)
-            assert r.phase == _result(old, nxt, set(r.held))
+            assert r.phase == step_phase(old, nxt, set(r.held))
             assert tuple(sorted(r.held)) in brute
             count += 1
     assert count > 10_000
@@ -48,7 +49,7 @@ def test_appendix_set_is_never_empty_and_synchronizes():
             continue
         keep = appendix_set(old, nxt)
         assert keep, (old, nxt)
-        assert _result(old, nxt, set(range(len(old))) - keep) != ERR
+        assert step_phase(old, nxt, set(range(len(old))) - keep) != ERR
 
 
 def test_highest_priority_constraint_is_kept_when_the_previous_step_allows_it():

@@ -5,7 +5,8 @@ phases of the actions (right, left, double support, flight) are synchronized bef
 do not slide when a motion with the left foot down meets one with the right foot down.
 
 Modules: :mod:`~kinodyn.phases` (sequences, the algebra, extension: sections 4.1-4.3),
-:mod:`~kinodyn.blend.sync` (chronological organization, section 5.1, appendix A),
+:mod:`~kinodyn.blend.sync` (chronological organization, section 5.1) with :mod:`~kinodyn.blend.holds`
+(the hold rule, appendix A),
 :mod:`~kinodyn.blend.timewarp` (durations and time warp, 5.2-5.3), :mod:`~kinodyn.blend.mixer`
 (the mixer) with :mod:`~kinodyn.blend.weights` (ramps, priorities), :mod:`~kinodyn.blend.pose` (pose
 blending), :mod:`~kinodyn.blend.actions`, :mod:`~kinodyn.blend.character` (per-character state) and
@@ -30,8 +31,9 @@ from kinodyn.phases import (
     combine,
     compatible,
 )
+from kinodyn.blend.holds import resolve
 from kinodyn.blend.script import BlendResult, Script, load_script, parse_script, run_script
-from kinodyn.blend.sync import SyncConfig, Synchronizer, resolve
+from kinodyn.blend.sync import SyncConfig, Synchronizer
 from kinodyn.blend.timewarp import WarpConfig, WarpPlanner
 from kinodyn.clips import ClipStore
 

@@ -20,33 +20,25 @@ are; when one of them is incompatible, its start waits for the next step (the pa
 forever unless it can never be satisfied by the rule (it then keeps waiting, reported in the log).
 An element much longer than the others' is also held for tempo (:attr:`SyncConfig.tempo_hold`).
 
-The synchronizer (real-time state) knows only the elements' own durations (for tempo holds), not real
-time: :mod:`kinodyn.blend.timewarp` gives steps their durations. Steps and element indices are integers.
+The hold rule itself (pure functions of phase codes) is :mod:`kinodyn.blend.holds`. The synchronizer is
+the one mutable object of this module (it is real-time state): it knows only the elements' own durations
+(for tempo holds), not real time; :mod:`kinodyn.blend.timewarp` gives steps their durations. Steps are
+integers; element indices are integers of the extended sequences (:meth:`PhaseSequence.element`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
-from itertools import combinations
 from typing import NamedTuple
 
-from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, phase_name
+from kinodyn.blend.holds import Resolution, join_phases, resolve
 from kinodyn.errors import ParameterError
+from kinodyn.phases import DS, ERR, FLIGHT, LS, RS, PhaseSequence, phase_name
 
 #: Steps of nominal durations kept behind the current one (elements held longer see only these).
 NOMINAL_KEPT = 256
 
-__all__ = [
-    "Resolution",
-    "SyncConfig",
-    "SyncEvent",
-    "Synchronizer",
-    "Track",
-    "appendix_set",
-    "brute_force_holds",
-    "resolve",
-]
+__all__ = ["SyncConfig", "SyncEvent", "Synchronizer", "Track"]
 
 
 @dataclass(frozen=True)
@@ -85,115 +77,6 @@ class SyncConfig:
             raise ParameterError(f"max_start_delay must be an integer >= 0, got {self.max_start_delay!r}")
         if not (self.tempo_hold == 0 or (self.tempo_hold >= 1 and self.tempo_hold < float("inf"))):
             raise ParameterError(f"tempo_hold must be 0 (off) or a finite ratio >= 1, got {self.tempo_hold!r}")
-
-
-class Resolution(NamedTuple):
-    """How one step was synchronized.
-
-    Attributes:
-        held: indices (into the inputs) of the actions that hold their last element.
-        phase: the combined phase of the step.
-        constraint: ``RS`` or ``LS`` when a single-support constraint was chosen, else ``None``.
-        rule: ``"free"`` (no conflict), ``"priority"`` (the highest-priority compatible constraint),
-            ``"other"`` (the other constraint), ``"appendix"`` (holding flight elements, appendix A).
-    """
-
-    held: tuple[int, ...]
-    phase: int
-    constraint: int | None
-    rule: str
-
-
-def _join(codes) -> int:
-    out = 0
-    for c in codes:
-        out |= c
-    return out
-
-
-def _result(old: Sequence[int], nxt: Sequence[int], held) -> int:
-    out = 0
-    for i, (o, n) in enumerate(zip(old, nxt)):
-        out |= o if i in held else n
-    return out
-
-
-def resolve(old: Sequence[int], nxt: Sequence[int], priorities: Sequence[float]) -> Resolution:
-    """Choose the actions that hold their last synchronized element so that the next step is not ``ERR``.
-
-    Args:
-        old: ``(n,)`` phase codes of each action's element at the last synchronized step; their
-            combination must not be ``ERR``. A starting action counts as ``DS`` (the neutral).
-        nxt: ``(n,)`` phase codes of each action's next element.
-        priorities: ``(n,)`` priorities, higher first; ties keep input order.
-
-    Returns a :class:`Resolution`: at least one action advances (is not held) whenever ``n > 0``,
-    and the step's phase is never ``ERR``. Raises ParameterError: ``old`` already combines to ``ERR``
-    or the lengths differ.
-    """
-    n = len(old)
-    if len(nxt) != n or len(priorities) != n:
-        raise ParameterError(f"old, nxt and priorities must have equal lengths, got {n}, {len(nxt)}, "
-                             f"{len(priorities)}")
-    prev = _join(old)
-    if prev == ERR:
-        raise ParameterError("the last synchronized step combines to ERR; it must be synchronized first")
-    cand = _join(nxt)
-    if cand != ERR:
-        return Resolution((), cand, None, "free")
-    # ERR: RS and LS, no FLIGHT; the constraint: the first allowed single support by priority
-    order = sorted(range(n), key=lambda i: -priorities[i])
-    first = None
-    for i in order:
-        if nxt[i] in (RS, LS) and (nxt[i] | prev) != ERR:
-            first = nxt[i]
-            break
-    tries = [(first, "priority"), (RS if first == LS else LS, "other")]
-    for c, rule in tries:
-        other = LS if c == RS else RS
-        held = tuple(i for i in range(n) if nxt[i] == other)
-        ph = _result(old, nxt, held)
-        if ph != ERR and len(held) < n:
-            return Resolution(held, ph, c, rule)
-    # Appendix A: after a flight, holding the absorbing element(s) too makes the step a flight
-    for c in (first, RS if first == LS else LS):
-        other = LS if c == RS else RS
-        held = tuple(i for i in range(n) if nxt[i] == other or old[i] == FLIGHT)
-        ph = _result(old, nxt, held)
-        if ph != ERR and len(held) < n:
-            return Resolution(held, ph, c, "appendix")
-    # Unreachable (see appendix_set): keep the literal construction of the proof as the last resort.
-    keep = appendix_set(old, nxt)
-    held = tuple(i for i in range(n) if i not in keep)
-    return Resolution(held, _result(old, nxt, held), None, "appendix")
-
-
-def appendix_set(old: Sequence[int], nxt: Sequence[int]) -> frozenset[int]:
-    """The actions that advance in the proof of appendix A (the others hold their last element).
-
-    When the previous step is a flight, holding one absorbing (flight) element is enough: every other
-    action advances. Otherwise the set ``A`` is a maximal set of next elements compatible with the
-    previous step's combination (equation 11), built greedily; holding the others synchronizes the
-    step because held elements combine to at most the previous step's phase. ``A`` is never empty when
-    the candidates conflict: they contain ``RS`` and ``LS`` and the previous step, not ``ERR``, is
-    compatible with one of them.
-    """
-    prev = _join(old)
-    if prev == FLIGHT:
-        j = next(i for i, o in enumerate(old) if o == FLIGHT)
-        return frozenset(i for i in range(len(old)) if i != j)
-    keep = []
-    for i, c in enumerate(nxt):
-        if (prev | c) != ERR:
-            keep.append(i)
-            prev |= c
-    return frozenset(keep)
-
-
-def brute_force_holds(old: Sequence[int], nxt: Sequence[int]) -> list[tuple[int, ...]]:
-    """Every hold set that synchronizes the step with at least one action advancing (test oracle)."""
-    n = len(old)
-    return [h for r in range(n) for h in combinations(range(n), r) if _result(old, nxt, set(h)) != ERR]
 
 
 # ----------------------------------------------------------------------------------------- the state
@@ -370,7 +253,7 @@ class Synchronizer:
         if t.end is not None and t.end <= s0:
             return t.end
         others = [x for x in self.tracks if x is not t]
-        without = {step: _join(x.code(x.elem(step)) for x in others if x.elem(step) is not None)
+        without = {step: join_phases(x.code(x.elem(step)) for x in others if x.elem(step) is not None)
                    for step in range(s0, self.frontier + 1)}
         s = s0
         while s <= self.frontier and any(without[j] == ERR for j in range(s, self.frontier + 1)):
@@ -499,7 +382,7 @@ class Synchronizer:
         for _, i in sorted(want, reverse=True):
             c = movers[i].code(old_e[i])
             others = [nxt[j] for j in range(len(nxt)) if j != i]
-            if (_join(others) | c) == ERR or len(held) + 1 >= len(nxt):
+            if (join_phases(others) | c) == ERR or len(held) + 1 >= len(nxt):
                 continue
             held.add(i)
             nxt[i] = c
