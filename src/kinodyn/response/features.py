@@ -22,6 +22,7 @@ import numpy as np
 
 from kinodyn.errors import ParameterError
 from kinodyn.math import quat
+from kinodyn.math.kernels import qmul
 
 __all__ = ["FEATURE_SETS", "SPINE", "FEET", "features", "feature_names"]
 
@@ -91,9 +92,8 @@ def _large_slice(q, origin, pos, rot, linvel, angvel, feet, spine, feet_idx, out
             o += 1
     aw, ax, ay, az = q[0], q[1], q[2], q[3]
     for a in range(n_s):
-        bw, bx, by, bz = rot[spine[a], 0], rot[spine[a], 1], rot[spine[a], 2], rot[spine[a], 3]
-        m = (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-             aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+        b = rot[spine[a]]
+        m = qmul(aw, ax, ay, az, b[0], b[1], b[2], b[3])
         for k in range(4):
             out[o] = -m[k] if m[0] < 0.0 else m[k]
             o += 1
