@@ -193,21 +193,6 @@ GROUPS = ("alone", "transition", "swing")
 ALONE_WEIGHT = 0.95
 
 
-def _neutral_source(result) -> tuple[int, float]:
-    """Clip and clip time of the neutral pose the mixer blends (:class:`~kinodyn.blend.mixer.Mixer`): the
-    script's neutral clip or ``idle`` at time 0; else the first clip's first double-support midpoint."""
-    from kinodyn.blend.library import sequences
-    from kinodyn.phases import DS
-
-    lib = result.library
-    name = result.script.neutral if result.script.neutral is not None else ("idle" if "idle" in lib.names else None)
-    if name is not None:
-        return lib.index(name), 0.0
-    seq = sequences(lib)[0]
-    ds = [i for i, p in enumerate(seq.phases) if p == DS]
-    return 0, 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
-
-
 def _offsets(src: SourceContacts, clip: int, tau, point, turn) -> np.ndarray:
     """``(F, 2, 2)`` horizontal offsets from the root of foot points ``point (F, 2)`` (left, right) of clip
     ``clip`` at clip times ``tau (F,)``, turned by ``turn (F,)``."""
@@ -222,11 +207,13 @@ def _source_side(result, src: SourceContacts, keys, h, dom, head, point):
     speed ``(F,)``, the ``(K + 1, F, 2, 2)`` offsets from the root of the foot point ``point (F, 2)``
     (the blend's lowest) of every action and (last) the neutral pose (NaN where an action is not
     playing), and ``(K, F, 2)`` which feet each action's source has down."""
+    from kinodyn.blend.library import neutral_source, sequences
+
     n = len(dom)
     foot, root, rate, nominal = np.zeros((n, 2, 2)), np.zeros((n, 2)), np.zeros(n), np.zeros(n)
     offset = np.full((len(keys) + 1, n, 2, 2), np.nan)
     down = np.ones((len(keys), n, 2), dtype=bool)
-    nc, nt = _neutral_source(result)
+    nc, nt = neutral_source(result.library, sequences(result.library), result.script.neutral)
     offset[-1] = _offsets(src, nc, np.full(n, nt), point, head - src.sample(src.heading[nc], nc, np.full(n, nt)))
     for j, k in enumerate(keys):
         act = result.actions[k]

@@ -20,7 +20,7 @@ from kinodyn.clips import ClipStore, ClipSupport, rest_height
 from kinodyn.errors import MotionError, ParameterError, UnknownNameError
 from kinodyn.motion import Motion
 
-__all__ = ["add_blend", "add_clip", "builtin", "sequence", "sequences"]
+__all__ = ["add_blend", "add_clip", "builtin", "neutral_source", "sequence", "sequences"]
 
 
 def add_clip(store: ClipStore, name: str, motion: Motion, cyclic: bool = False,
@@ -70,6 +70,19 @@ def sequence(store: ClipStore, name) -> PhaseSequence:
 def sequences(store: ClipStore) -> list[PhaseSequence]:
     """Every clip's sequence, in store order."""
     return [sequence(store, k) for k in range(len(store))]
+
+
+def neutral_source(store: ClipStore, seqs: list[PhaseSequence], neutral: str | None = None) -> tuple[int, float]:
+    """Clip index and clip time of the neutral double-support pose the mixer blends in: the clip named
+    ``neutral`` at its start, else ``idle`` at its start, else the middle of the first clip's first
+    double support (its start when it has none); ``seqs`` are the store's sequences (:func:`sequences`)."""
+    if neutral is None and "idle" in store.names:
+        neutral = "idle"
+    if neutral is not None:
+        return store.index(neutral), 0.0
+    seq = seqs[0]
+    ds = [i for i, p in enumerate(seq.phases) if p == _phases.DS]
+    return 0, 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
 
 
 def add_blend(store: ClipStore, name: str, weights: dict) -> ClipStore:

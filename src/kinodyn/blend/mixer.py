@@ -45,7 +45,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinodyn.blend import library as _library
-from kinodyn import phases as _phases
 from kinodyn.blend.actions import ActionState, Recording
 from kinodyn.blend.character import Character, Slots
 from kinodyn.blend.footlock import FootLock
@@ -211,22 +210,13 @@ class Mixer:
     # ------------------------------------------------------------------ setup
     def _neutral_pose(self, neutral):
         lib = self.library
-        if neutral is None:
-            if "idle" in lib.names:
-                neutral = "idle"
-            else:
-                name = lib.names[0]
-                seq = self.sequences[0]
-                ds = [i for i, p in enumerate(seq.phases) if p == _phases.DS]
-                t = 0.0 if not ds else max(0.0, (seq.bounds[ds[0]] + seq.bounds[ds[0] + 1]) / 2)
-                rot, z = lib.sample(np.array([lib.index(name)]), np.array([t]))
-                return rot[0], float(z[0])
         if isinstance(neutral, Motion):
             tmp = _library.add_clip(ClipStore.empty(lib.skeleton), "neutral",
                                     neutral[:2] if neutral.num_frames >= 2 else neutral)
             rot, z = tmp.sample(np.array([0]), np.array([0.0]))
             return rot[0], float(z[0])
-        rot, z = lib.sample(np.array([lib.index(neutral)]), np.array([0.0]))
+        k, t = _library.neutral_source(lib, self.sequences, neutral)
+        rot, z = lib.sample(np.array([k]), np.array([t]))
         return rot[0], float(z[0])
 
     def _neutral_feet(self) -> np.ndarray:
