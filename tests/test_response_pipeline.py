@@ -55,6 +55,12 @@ def _assert_continuous_joins(r, case):
         own_j, own_t = jump[near].max(), turn[near].max()
         assert jump[a - 1] <= own_j + _JUMP_CM, f"{case} {name}: {jump[a - 1]:.2f} cm vs {own_j:.2f}"
         assert turn[a - 1] <= own_t + _TURN_DEG, f"{case} {name}: {turn[a - 1]:.2f} deg vs {own_t:.2f}"
+        if name != "impact":
+            # The stitched joins: no step within two frames of the join jumps either (a snap there would
+            # hide among the neighbours above), against the motion's own speed beyond them.
+            win = jump[max(a - 3, 0):a + 1]
+            far = jump[np.r_[max(a - 7, 0):max(a - 3, 0), a + 1:min(a + 5, len(jump))]].max()
+            assert win.max() <= far + _JUMP_CM, f"{case} {name}: {win.max():.2f} cm near the join vs {far:.2f}"
 
 
 @pytest.mark.parametrize("base", ["idle", "fighting_stance"])
