@@ -14,6 +14,12 @@ of a few repeats per throw, the median over the throws; numba runs on one thread
 time (``response_ms_end_to_end``) is the median over throws after a process's first response, which
 builds the compiled selector and loads the kernels and is reported alone (``response_ms_first``).
 
+Beside the accuracy, ``label_flip_rate`` is the fraction of held-out throws whose exhaustive label changes
+when the ball is thrown 0.1 % faster, and ``accuracy_ceiling`` (one minus half of it) the most a classifier
+can score against these labels if it gives two such throws, whose features differ far less than
+neighbouring training cases do, the same clip: the best clips are often near-ties, and the simulation
+after a hit is sensitive enough that a change that small reorders them.
+
 ``--quick`` scores the shipped models (no retraining) on fewer held-out throws; the full run retrains on
 5,500 freshly generated throws first and reports how many it used.
 """
@@ -155,6 +161,18 @@ def _motions(lib, model, n: int, res: BenchResult) -> None:
     res.add("responses_per_s_2_cores", 2.0 / float(np.median(times)), "responses/s")
 
 
+def _label_stability(n: int, res: BenchResult) -> None:
+    """How far the labels themselves let a classifier go: the fraction of held-out throws whose exhaustive
+    label changes when the ball is 0.1 % faster (:func:`kinodyn.response.dataset.label_flips`), and the
+    accuracy ceiling it implies (``1 - flips / 2``) for a classifier that cannot tell such throws apart."""
+    from kinodyn.response.dataset import label_flips
+
+    flips = label_flips(_HELD_OUT_SEED, range(n))
+    res.add("label_flip_rate", float(flips.mean()), "fraction")
+    res.add("accuracy_ceiling", 1.0 - float(flips.mean()) / 2.0, "fraction")
+    res.add("label_flip_cases", int(len(flips)), "cases")
+
+
 def _throughput(n: int, res: BenchResult) -> None:
     from kinodyn.response.dataset import generate
 
@@ -177,7 +195,8 @@ def _throughput(n: int, res: BenchResult) -> None:
 def run(quick: bool = False, progress=None) -> BenchResult:
     res = BenchResult("response")
     lib, models = _models(quick, res)
-    _held_out(lib, models, 8 if quick else 200, res)
+    _held_out(lib, models, 40 if quick else 200, res)
+    _label_stability(60 if quick else 300, res)
     _motions(lib, models["large"], 3 if quick else 20, res)
     _throughput(4 if quick else 40, res)
     res.baseline = {"exhaustive_ms_per_impact": res.metrics["exhaustive_ms_per_impact"],

@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from kinodyn.errors import FileFormatError, KinodynError
+from kinodyn.errors import FileFormatError, KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
 from kinodyn.response.pipeline import Ball, label_search, observe
 
-__all__ = ["TARGETS", "Dataset", "ball_for", "generate", "label_chunk"]
+__all__ = ["TARGETS", "Dataset", "ball_for", "generate", "label_chunk", "label_flips"]
 
 FORMAT = "kinodyn.response-dataset/1"
 #: Landmarks the balls aim at.
@@ -69,6 +69,33 @@ def label_chunk(tasks: list) -> dict:
                        ("error", err), ("per_clip", per_clip)):
             rows[key].append(v)
     return {k: np.asarray(v) for k, v in rows.items()}
+
+
+def label_flips(seed: int, cases, base: str = "walk", relative: float = 1e-3) -> np.ndarray:
+    """How stable the exhaustive labels are: for each case ``i`` of ``cases`` (of a dataset with ``seed``),
+    whether its label changes when the ball is thrown ``relative`` faster (a 0.1 % change by default: a few
+    millimetres a second, far below what the features resolve). ``(N,)`` booleans; cases whose simulation
+    fails in either throw are left out.
+
+    A classifier that gives two such near-identical throws the same answer is wrong on at least one of each
+    pair that flips, so ``1 - flips.mean() / 2`` bounds the accuracy such a classifier can reach against
+    these labels.
+    """
+    from dataclasses import replace
+
+    if not relative > 0:
+        raise ParameterError(f"relative must be > 0, got {relative}")
+    motion, lib = _setup(base)
+    out = []
+    for i in cases:
+        ball = ball_for(seed, int(i))
+        try:
+            a = label_search(observe(motion, ball), lib).clip
+            b = label_search(observe(motion, replace(ball, speed=ball.speed * (1.0 + relative))), lib).clip
+        except KinodynError:
+            continue
+        out.append(a != b)
+    return np.asarray(out, dtype=bool)
 
 
 @dataclass(frozen=True)
