@@ -170,7 +170,7 @@ def _label_stability(n: int, res: BenchResult) -> None:
     flips = label_flips(_HELD_OUT_SEED, range(n))
     res.add("label_flip_rate", float(flips.mean()), "fraction")
     res.add("accuracy_ceiling", 1.0 - float(flips.mean()) / 2.0, "fraction")
-    res.add("label_flip_cases", int(len(flips)), "cases")
+    res.add("label_flip_cases", len(flips), "cases")
 
 
 def _throughput(n: int, res: BenchResult) -> None:
