@@ -167,7 +167,7 @@ def _label_stability(n: int, res: BenchResult) -> None:
     accuracy ceiling it implies (``1 - flips / 2``) for a classifier that cannot tell such throws apart."""
     from kinodyn.response.dataset import label_flips
 
-    flips = label_flips(_HELD_OUT_SEED, range(n))
+    flips = label_flips(_HELD_OUT_SEED, range(n), workers=2, show_progress=False)
     res.add("label_flip_rate", float(flips.mean()), "fraction")
     res.add("accuracy_ceiling", 1.0 - float(flips.mean()) / 2.0, "fraction")
     res.add("label_flip_cases", len(flips), "cases")
@@ -196,7 +196,7 @@ def run(quick: bool = False, progress=None) -> BenchResult:
     res = BenchResult("response")
     lib, models = _models(quick, res)
     _held_out(lib, models, 40 if quick else 200, res)
-    _label_stability(60 if quick else 300, res)
+    _label_stability(150 if quick else 300, res)
     _motions(lib, models["large"], 3 if quick else 20, res)
     _throughput(4 if quick else 40, res)
     res.baseline = {"exhaustive_ms_per_impact": res.metrics["exhaustive_ms_per_impact"],

@@ -23,7 +23,7 @@ from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
 from kinodyn.response.pipeline import Ball, label_search, observe
 
-__all__ = ["TARGETS", "Dataset", "ball_for", "generate", "label_chunk", "label_flips"]
+__all__ = ["TARGETS", "Dataset", "ball_for", "generate", "flip_chunk", "label_chunk", "label_flips"]
 
 FORMAT = "kinodyn.response-dataset/1"
 #: Landmarks the balls aim at.
@@ -71,31 +71,47 @@ def label_chunk(tasks: list) -> dict:
     return {k: np.asarray(v) for k, v in rows.items()}
 
 
-def label_flips(seed: int, cases, base: str = "walk", relative: float = 1e-3) -> np.ndarray:
+def flip_chunk(tasks: list) -> dict:
+    """One worker job of :func:`label_flips`: for cases ``[(seed, i, base, relative), ...]``, whether the
+    exhaustive label changes with a ball ``relative`` faster (``flip``) and whether both throws simulated
+    (``ok``)."""
+    from dataclasses import replace
+
+    flip, ok = [], []
+    for seed, i, base, relative in tasks:
+        motion, lib = _setup(base)
+        ball = ball_for(seed, i)
+        try:
+            a = label_search(observe(motion, ball), lib).clip
+            b = label_search(observe(motion, replace(ball, speed=ball.speed * (1.0 + relative))), lib).clip
+        except KinodynError:
+            a = b = -1
+        flip.append(a != b)
+        ok.append(a >= 0 and b >= 0)
+    return {"flip": np.asarray(flip, dtype=bool), "ok": np.asarray(ok, dtype=bool)}
+
+
+def label_flips(seed: int, cases, base: str = "walk", relative: float = 1e-3, *, workers: int | None = None,
+                show_progress=None) -> np.ndarray:
     """How stable the exhaustive labels are: for each case ``i`` of ``cases`` (of a dataset with ``seed``),
     whether its label changes when the ball is thrown ``relative`` faster (a 0.1 % change by default: a few
     millimetres a second, far below what the features resolve). ``(N,)`` booleans; cases whose simulation
-    fails in either throw are left out.
+    fails in either throw are left out. Runs on all local cores by default (:func:`kinodyn.parallel.run`).
 
     A classifier that gives two such near-identical throws the same answer is wrong on at least one of each
     pair that flips, so ``1 - flips.mean() / 2`` bounds the accuracy such a classifier can reach against
     these labels.
     """
-    from dataclasses import replace
+    from kinodyn import parallel
 
     if not relative > 0:
         raise ParameterError(f"relative must be > 0, got {relative}")
-    motion, lib = _setup(base)
-    out = []
-    for i in cases:
-        ball = ball_for(seed, int(i))
-        try:
-            a = label_search(observe(motion, ball), lib).clip
-            b = label_search(observe(motion, replace(ball, speed=ball.speed * (1.0 + relative))), lib).clip
-        except KinodynError:
-            continue
-        out.append(a != b)
-    return np.asarray(out, dtype=bool)
+    tasks = [(int(seed), int(i), base, float(relative)) for i in cases]
+    if not tasks:
+        return np.zeros(0, dtype=bool)
+    out = parallel.run(flip_chunk, tasks, chunk_size=10, workers=workers, desc="label stability",
+                       show_progress=show_progress)
+    return out["flip"][out["ok"]]
 
 
 @dataclass(frozen=True)
