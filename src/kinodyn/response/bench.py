@@ -198,7 +198,7 @@ def run(quick: bool = False, progress=None) -> BenchResult:
     _held_out(lib, models, 40 if quick else 200, res)
     _label_stability(150 if quick else 300, res)
     _motions(lib, models["large"], 3 if quick else 20, res)
-    _throughput(4 if quick else 40, res)
+    _throughput(40 if quick else 200, res)
     res.baseline = {"exhaustive_ms_per_impact": res.metrics["exhaustive_ms_per_impact"],
                     "paper_speedup": 20.0, "paper_accuracy_small": 0.86, "paper_accuracy_large": 0.94}
     res.notes["setup"] = ("built-in reaction library, walk base motion, balls from kinodyn.response.dataset."
