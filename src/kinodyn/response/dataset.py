@@ -94,8 +94,8 @@ def flip_chunk(tasks: list) -> dict:
 def label_flips(seed: int, cases, base: str = "walk", relative: float = 1e-3, *, workers: int | None = None,
                 show_progress=None) -> np.ndarray:
     """How stable the exhaustive labels are: for each case ``i`` of ``cases`` (of a dataset with ``seed``),
-    whether its label changes when the ball is thrown ``relative`` faster (a 0.1 % change by default: a few
-    millimetres a second, far below what the features resolve). ``(N,)`` booleans; cases whose simulation
+    whether its label changes when the ball is thrown ``relative`` faster (a 0.1 % change by default: under a
+    centimetre a second, far below what the features resolve). ``(N,)`` booleans; cases whose simulation
     fails in either throw are left out. Runs on all local cores by default (:func:`kinodyn.parallel.run`).
 
     A classifier that gives two such near-identical throws the same answer is wrong on at least one of each
