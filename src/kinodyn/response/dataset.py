@@ -23,7 +23,7 @@ from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
 from kinodyn.response.pipeline import Ball, label_search, observe
 
-__all__ = ["TARGETS", "Dataset", "ball_for", "generate", "flip_chunk", "label_chunk", "label_flips"]
+__all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips"]
 
 FORMAT = "kinodyn.response-dataset/1"
 #: Landmarks the balls aim at.
