@@ -66,3 +66,18 @@ def test_the_bench_reports_the_sliding_causes_beside_the_headline():
             b[f"{arm}_sliding_cm_s"], abs=1e-9)
         assert 0.0 < b[f"{arm}_share_transition"] < 1.0
     assert "lock_sliding_own_cm_s" not in b  # the causes of the two arms without the lock only
+
+
+def test_characters_at_60fps_keeps_searching_after_overruns(monkeypatch):
+    """Tries that overrun the budget (a loaded machine) bracket the search instead of ending it: with a
+    cost of 0.02 ms per character and every count from 400 up overrunning, the search still finds a
+    count between 300 and 400 rather than stopping at its first crowd of 200."""
+    from kinodyn.blend import bench
+
+    def fake(n, seconds, synchronize=True, library=None):
+        ms = 0.02 * n if n < 400 else 100.0
+        return {"frame_ms": ms, "us_per_char_frame": 1e3 * ms / n}
+
+    monkeypatch.setattr(bench, "crowd_benchmark", fake)
+    r = bench.characters_at_60fps(None, 0.1, start=200, budget_ms=8.0)
+    assert 300 <= r["characters"] < 400 and r["frame_ms"] <= 8.0
