@@ -15,8 +15,13 @@ def seeded_chunk(tasks):
     return {"x": np.array(rows), "i": np.array([i for _, i in tasks])}
 
 
+CALLS: list = []
+
+
 def counting_chunk(tasks):
-    """Fails on tasks marked 'stop' (to interrupt a run)."""
+    """Records the tasks it is called on (in this process: ``workers=1``); fails on tasks marked 'stop'
+    (to interrupt a run)."""
+    CALLS.append([t[0] for t in tasks])
     if any(t[1] == "stop" for t in tasks):
         raise RuntimeError("interrupted")
     return {"i": np.array([t[0] for t in tasks])}
@@ -40,13 +45,38 @@ def test_same_results_for_one_and_two_workers():
 def test_an_interrupted_run_resumes_from_its_chunks(tmp_path):
     tasks = [(i, "go") for i in range(10)]
     bad = tasks[:6] + [(6, "stop")] + tasks[7:]
+    CALLS.clear()
     with pytest.raises(RuntimeError):
         parallel.run(counting_chunk, bad, chunk_size=3, workers=1, resume_dir=tmp_path)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["chunk-00000.npz", "chunk-00001.npz"]
-    # The finished chunks are read back, not recomputed: they would fail if they were.
-    resumed = [(i, "stop") for i in range(6)] + tasks[6:]
-    out = parallel.run(counting_chunk, resumed, chunk_size=3, workers=1, resume_dir=tmp_path)
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert [n[:12] for n in names] == ["chunk-00000-", "chunk-00001-"] and all(n.endswith(".npz") for n in names)
+    # The finished chunks are read back, not recomputed: only the last two chunks run again.
+    CALLS.clear()
+    out = parallel.run(counting_chunk, tasks, chunk_size=3, workers=1, resume_dir=tmp_path)
     np.testing.assert_array_equal(out["i"], np.arange(10))
+    assert CALLS == [[6, 7, 8], [9]]
+
+
+def test_a_resumed_run_reads_back_only_chunks_of_its_own_tasks(tmp_path):
+    """Chunks of another run in the same folder (another seed, chunk size or function) are not taken for
+    this run's; a longer run reuses the chunks it shares with a shorter one."""
+    six = parallel.run(seeded_chunk, [(7, i) for i in range(6)], chunk_size=3, workers=1, resume_dir=tmp_path)
+    other = parallel.run(seeded_chunk, [(8, i) for i in range(6)], chunk_size=3, workers=1, resume_dir=tmp_path)
+    assert not np.allclose(six["x"], other["x"]), "seed 8 computed, not read back from seed 7's chunks"
+    np.testing.assert_array_equal(other["x"], parallel.run(seeded_chunk, [(8, i) for i in range(6)], chunk_size=3,
+                                                           workers=1)["x"])
+    resized = parallel.run(seeded_chunk, [(7, i) for i in range(6)], chunk_size=2, workers=1, resume_dir=tmp_path)
+    np.testing.assert_array_equal(resized["x"], six["x"])
+    CALLS.clear()
+    parallel.run(counting_chunk, [(i, "go") for i in range(6)], chunk_size=3, workers=1, resume_dir=tmp_path)
+    assert CALLS == [[0, 1, 2], [3, 4, 5]], "another function's chunks are not read back"
+    CALLS.clear()
+    longer = parallel.run(counting_chunk, [(i, "go") for i in range(9)], chunk_size=3, workers=1,
+                          resume_dir=tmp_path)
+    np.testing.assert_array_equal(longer["i"], np.arange(9))
+    assert CALLS == [[6, 7, 8]], "the chunks shared with the shorter run are read back"
+    assert parallel.chunk_key(seeded_chunk, [(7, 0)]) == parallel.chunk_key(seeded_chunk, [(7, 0)])
+    assert parallel.chunk_key(seeded_chunk, [(7, 0)]) != parallel.chunk_key(counting_chunk, [(7, 0)])
 
 
 def test_bad_arguments():

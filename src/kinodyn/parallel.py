@@ -8,14 +8,19 @@ task order. Every task carries its own seed, so the same tasks give the same res
 workers and on Ray.
 
 A chunk function takes a list of tasks and returns a dict of arrays with one leading row per task.
-With ``resume_dir`` each finished chunk is written there (``chunk-00012.npz``, no pickles) and a rerun
-skips the chunks already on disk, so an interrupted run resumes where it stopped.
+With ``resume_dir`` each finished chunk is written there (``chunk-00012-<key>.npz``, no pickles) and a
+rerun skips the chunks already on disk, so an interrupted run resumes where it stopped. A chunk's file
+name carries a key of the chunk function and the chunk's own tasks (:func:`chunk_key`), so a chunk is
+read back only by a run that would compute the same one: a run with another seed, chunk size or
+function in the same folder computes its own chunks, and a run with more tasks reuses the chunks it
+shares with a shorter one.
 
 Ray is an optional dependency (``pip install kinodyn[ray]``), imported only when asked for.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
@@ -26,7 +31,7 @@ import numpy as np
 from kinodyn.errors import ParameterError
 from kinodyn.progress import progress
 
-__all__ = ["BACKENDS", "chunks", "default_workers", "run"]
+__all__ = ["BACKENDS", "chunk_key", "chunks", "default_workers", "run"]
 
 BACKENDS = ("local", "ray")
 
@@ -46,8 +51,15 @@ def chunks(n: int, size: int) -> list[tuple[int, int]]:
     return [(a, min(a + size, n)) for a in range(0, n, size)]
 
 
-def _chunk_path(folder: Path, i: int) -> Path:
-    return folder / f"chunk-{i:05d}.npz"
+def chunk_key(fn, tasks: list) -> str:
+    """16 hex digits naming chunk function ``fn`` applied to ``tasks``: a hash of the function's module and
+    qualified name and of the tasks' ``repr`` (tasks carry numbers and strings, whose ``repr`` is stable)."""
+    text = f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', repr(fn))}\n{tasks!r}"
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _chunk_path(folder: Path, i: int, key: str) -> Path:
+    return folder / f"chunk-{i:05d}-{key}.npz"
 
 
 def _save(path: Path, result: dict) -> None:
@@ -120,7 +132,8 @@ def run(fn, tasks: list, *, chunk_size: int = 16, workers: int | None = None, ba
             Ray started here.
         backend: ``"local"`` or ``"ray"``.
         address: Ray cluster address (default: start Ray locally).
-        resume_dir: folder keeping finished chunks; chunks found there are not recomputed.
+        resume_dir: folder keeping finished chunks; a chunk of the same function and tasks found there
+            is read back, not recomputed.
         desc: progress-bar label; show_progress: force the bar on or off (default: on a terminal).
     """
     if backend not in BACKENDS:
@@ -132,17 +145,19 @@ def run(fn, tasks: list, *, chunk_size: int = 16, workers: int | None = None, ba
     parts = [tasks[a:b] for a, b in ranges]
     results: dict[int, dict] = {}
     folder = None if resume_dir is None else Path(resume_dir)
+    paths = []
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
-        for i in range(len(parts)):
-            if _chunk_path(folder, i).exists():
-                results[i] = _load(_chunk_path(folder, i))
+        paths = [_chunk_path(folder, i, chunk_key(fn, part)) for i, part in enumerate(parts)]
+        for i, path in enumerate(paths):
+            if path.exists():
+                results[i] = _check_result(_load(path), len(parts[i]), i)
     todo = [i for i in range(len(parts)) if i not in results]
 
     def done(i, result):
         results[i] = _check_result(result, len(parts[i]), i)
         if folder is not None:
-            _save(_chunk_path(folder, i), results[i])
+            _save(paths[i], results[i])
 
     bar = progress(total=len(parts), desc=desc or "chunks", enabled=show_progress)
     bar.update(len(parts) - len(todo))
