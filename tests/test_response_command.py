@@ -83,3 +83,60 @@ def test_play_with_a_clip_folder_chooses_by_search_when_no_model_is_given(tmp_pa
     assert "exhaustive search" in captured.err
     assert load(out).num_frames > data.load("walk").num_frames // 2
     assert any(f"clip {n} " in captured.out for n in ("fall_backward", "step_back_small"))
+
+
+def test_train_on_a_clip_folder_then_play_with_that_model(tmp_path, capsys):
+    """``response train --library DIR`` labels the throws against the folder's clips (from a BVH base motion
+    of their skeleton), so ``play --library DIR --model M`` chooses with the model trained on them; the
+    model's command reproduces it, and a model for another library is refused."""
+    pytest.importorskip("sklearn")
+    from kinodyn.cli import main
+    from kinodyn.data import library as data
+    from kinodyn.errors import KinodynError
+    from kinodyn.io import save
+    from kinodyn.response.classifier import ReactionModel
+    from kinodyn.response.command import DEFAULT_MODEL
+    from kinodyn.response.dataset import Dataset
+    from kinodyn.response.library import from_folder
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    names = ("fall_backward", "fall_forward", "step_back_small", "step_forward_small")
+    for name in names:
+        save(folder / f"{name}.bvh", data.load(name))
+    save(tmp_path / "walk.bvh", data.load("walk"))
+    model_dir, ds_path = tmp_path / "model", tmp_path / "ds.npz"
+    assert main(["response", "train", "--cases", "48", "--base", str(tmp_path / "walk.bvh"), "--library", str(folder),
+                 "--workers", "2", "--chunk-size", "12", "--kind", "small", "--dataset", str(ds_path),
+                 "-o", str(model_dir)]) == 0
+    ds = Dataset.load(ds_path)
+    assert tuple(ds.meta["clips"]) == names and ds.per_clip.shape == (48, 4)
+    assert set(ds.clip[ds.valid()]) <= set(range(4)) and len(set(ds.clip[ds.valid()])) >= 2
+    lib = from_folder(folder)
+    model = ReactionModel.load(model_dir, lib)
+    assert model.clips == names and "--base walk.bvh --library clips " in model.info["command"]
+    capsys.readouterr()
+    out = tmp_path / "r.bvh"
+    assert main(["response", "play", "--base", str(tmp_path / "walk.bvh"), "--library", str(folder),
+                 "--model", str(model_dir), "--ball", "9,180,1.5,chest", "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "exhaustive search" not in captured.err and any(f"clip {n} " in captured.out for n in names)
+    with pytest.raises(KinodynError):
+        ReactionModel.load(DEFAULT_MODEL / "small", lib)
+
+
+def test_train_refuses_a_base_motion_of_another_skeleton_before_simulating(tmp_path):
+    """A base motion the folder's clips cannot be matched against is an error up front, not thousands of
+    failed throws."""
+    from kinodyn.data import library as data
+    from kinodyn.errors import KinodynError
+    from kinodyn.io import save
+    from kinodyn.response.dataset import generate
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    save(folder / "fall_backward.bvh", data.load("fall_backward").resample(30.0))
+    with pytest.raises(KinodynError, match="fps"):
+        generate(10, base="walk", library=folder, workers=1)
+    with pytest.raises(KinodynError, match="cases"):
+        generate(0, base="walk", workers=1)

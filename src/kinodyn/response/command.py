@@ -1,6 +1,7 @@
 """``kinodyn response train|play``: train the reaction classifier, or play one response and explain it.
 
-    kinodyn response train [--cases N] [--backend local|ray] [--address ADDR] [--workers N] -o MODEL_DIR
+    kinodyn response train [--cases N] [--base walk|FILE] [--library DIR] [--backend local|ray] [--address ADDR]
+                           [--workers N] -o MODEL_DIR
     kinodyn response play --base walk --ball SPEED,DIRECTION,HEIGHT,TARGET | --seed N [--model DIR]
                           [--exhaustive] [--library DIR] -o out.bvh [--html out.html] [--explain DIR]
 
@@ -31,7 +32,10 @@ def add_arguments(p) -> None:
     t.add_argument("-o", "--output", required=True, help="model folder to write")
     t.add_argument("--cases", type=int, default=5500, help="number of throws (default 5500)")
     t.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
-    t.add_argument("--base", default="walk", help="base motion: walk, idle or fighting_stance (default walk)")
+    t.add_argument("--base", default="walk",
+                   help="base motion: a built-in clip (walk, idle, fighting_stance) or a BVH file (default walk)")
+    t.add_argument("--library", help="folder of BVH reaction clips to label against (default: the built-in "
+                   "library); the base motion must be on their skeleton")
     t.add_argument("--kind", choices=["large", "small"], default="large", help="feature set (default large)")
     t.add_argument("--backend", choices=["local", "ray"], default="local")
     t.add_argument("--address", help="Ray cluster address (default: start Ray here)")
@@ -72,18 +76,22 @@ def _ball(args):
 def _train(args) -> int:
     from kinodyn.response.classifier import train
     from kinodyn.response.dataset import generate
-    from kinodyn.response.library import builtin
+    from kinodyn.response.library import builtin, from_folder
 
     if args.cases < 10:
         raise ParameterError(f"--cases must be at least 10, got {args.cases}")
     out = Path(args.output)
-    ds = generate(args.cases, args.seed, args.base, workers=args.workers, backend=args.backend,
-                  address=args.address, resume_dir=args.resume or out / "chunks", chunk_size=args.chunk_size)
+    lib = builtin() if args.library is None else from_folder(args.library)
+    ds = generate(args.cases, args.seed, args.base, library=args.library, workers=args.workers,
+                  backend=args.backend, address=args.address, resume_dir=args.resume or out / "chunks",
+                  chunk_size=args.chunk_size)
     ok = ds.valid()
-    lib = builtin()
     model = train(getattr(ds, args.kind)[ok], ds.clip[ok], args.kind, lib, errors=ds.per_clip[ok])
-    model.info.update({"seed": args.seed, "base": args.base, "command": f"kinodyn response train --cases {args.cases} "
-                       f"--seed {args.seed} --base {args.base} --kind {args.kind} -o {out.name}"})
+    # the command names files and folders as their last part (the rest is where they were on this machine)
+    library = "" if args.library is None else f" --library {Path(args.library).name}"
+    base = Path(args.base).name if Path(args.base).exists() else args.base
+    model.info.update({"seed": args.seed, "base": base, "command": f"kinodyn response train --cases {args.cases} "
+                       f"--seed {args.seed} --base {base}{library} --kind {args.kind} -o {out.name}"})
     model.save(out)
     if args.dataset:
         ds.save(args.dataset)
@@ -157,19 +165,15 @@ def viewer_overlays(r, character: int = 0) -> list:
 
 
 def _play(args) -> int:
-    from kinodyn.io import drop_added_tpose, load, save
+    from kinodyn.io import save
     from kinodyn.response.classifier import ReactionModel
+    from kinodyn.response.dataset import load_base
     from kinodyn.response.library import builtin, from_folder
     from kinodyn.response.pipeline import respond
 
     ball = _ball(args)
     lib = builtin() if args.library is None else from_folder(args.library)
-    if Path(args.base).exists():
-        base = drop_added_tpose(load(Path(args.base)))[0].resample(lib.fps)
-    else:
-        from kinodyn.data import library as data
-
-        base = data.load(args.base)
+    base = load_base(args.base, lib.fps)
     select = None
     if not args.exhaustive and args.model is None and args.library is not None:
         print("kinodyn: note: the shipped model chooses among the built-in clips; the clips of --library are "

@@ -23,12 +23,11 @@ from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
 from kinodyn.response.pipeline import Ball, label_search, observe
 
-__all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips"]
+__all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips", "load_base"]
 
 FORMAT = "kinodyn.response-dataset/1"
 #: Landmarks the balls aim at.
 TARGETS = ("chest", "stomach", "pelvis", "head")
-BASES = ("walk", "idle")
 
 
 def ball_for(seed: int, i: int) -> Ball:
@@ -40,21 +39,39 @@ def ball_for(seed: int, i: int) -> Ball:
                 time=float(rng.uniform(0.8, 1.4)))
 
 
-@lru_cache(maxsize=4)
-def _setup(base: str):
-    from kinodyn.data import library as data
-    from kinodyn.response.library import builtin
+def load_base(base: str, fps: float):
+    """The base motion ``base``: a BVH (or other motion) file when that path exists, resampled to ``fps``
+    (a T-pose frame a converter added before the capture left out), else a built-in clip by name."""
+    if Path(base).exists():
+        from kinodyn.io import drop_added_tpose, load
 
-    return data.load(base), builtin()
+        return drop_added_tpose(load(Path(base)))[0].resample(fps)
+    from kinodyn.data import library as data
+
+    return data.load(base)
+
+
+@lru_cache(maxsize=4)
+def _setup(base: str, library: str | None = None):
+    """``(base motion, reaction library)`` of one job: the built-in library, or the BVH clips of folder
+    ``library``; built once per process."""
+    from kinodyn.response.library import builtin, from_folder
+    from kinodyn.response.pipeline import check_inputs
+
+    lib = builtin() if library is None else from_folder(library)
+    motion = load_base(base, lib.fps)
+    check_inputs(motion, lib)
+    return motion, lib
 
 
 def label_chunk(tasks: list) -> dict:
-    """Simulate and label cases ``[(seed, i, base), ...]`` (one worker job; the library is built once per
-    process). Cases whose simulation fails get label -1."""
+    """Simulate and label cases ``[(seed, i, base), ...]``, or ``[(seed, i, base, library folder), ...]``
+    for a library of BVH clips (one worker job; the library is built once per process). Cases whose
+    simulation fails get label -1."""
     rows = {"large": [], "small": [], "clip": [], "sim_frame": [], "clip_frame": [], "error": [], "per_clip": [],
             "ball": []}
-    for seed, i, base in tasks:
-        motion, lib = _setup(base)
+    for seed, i, base, *library in tasks:
+        motion, lib = _setup(base, *library)
         ball = ball_for(seed, i)
         rows["ball"].append([ball.speed, ball.direction, ball.height, ball.time, TARGETS.index(ball.target)])
         try:
@@ -164,15 +181,34 @@ class Dataset:
             raise FileFormatError(f"cannot read response dataset: {e}", path) from None
 
 
-def generate(cases: int, seed: int = 0, base: str = "walk", *, workers: int | None = None, backend: str = "local",
-             address: str | None = None, resume_dir=None, chunk_size: int = 20, show_progress=None) -> Dataset:
-    """``cases`` labelled throws at the built-in humanoid playing ``base`` (see :func:`ball_for`)."""
+def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, workers: int | None = None,
+             backend: str = "local", address: str | None = None, resume_dir=None, chunk_size: int = 20,
+             show_progress=None) -> Dataset:
+    """``cases`` labelled throws (see :func:`ball_for`) at a character playing ``base``, labelled against
+    the built-in reaction library, or against the BVH clips of folder ``library``.
+
+    Args:
+        cases, seed: how many throws, and the seed they are drawn from (case ``i`` of seed ``s`` is always
+            the same throw).
+        base: a built-in clip name (``walk``, ``idle``, ``fighting_stance``) or a motion file, on the
+            library's skeleton.
+        library: a folder of BVH reaction clips (default: the built-in library); on a Ray cluster, a path
+            every node can read.
+        workers, backend, address, resume_dir, chunk_size, show_progress: as :func:`kinodyn.parallel.run`.
+
+    Raises:
+        ParameterError, MotionError: a base motion or library that cannot be used (checked before any
+            throw is simulated).
+    """
     from kinodyn import parallel
 
-    tasks = [(int(seed), i, base) for i in range(int(cases))]
+    if int(cases) < 1:
+        raise ParameterError(f"cases must be >= 1, got {cases}")
+    folder = None if library is None else str(Path(library).resolve())
+    _, lib = _setup(base, folder)  # bad input is reported here, not as failed cases
+    tasks = [(int(seed), i, base) + (() if folder is None else (folder,)) for i in range(int(cases))]
     out = parallel.run(label_chunk, tasks, chunk_size=chunk_size, workers=workers, backend=backend,
                        address=address, resume_dir=resume_dir, desc=f"throws at {base}", show_progress=show_progress)
-    _, lib = _setup(base)
     meta = {"format": FORMAT, "seed": int(seed), "base": base, "cases": int(cases), "clips": list(lib.names),
             "library": lib.signature(), "targets": list(TARGETS)}
     return Dataset(out["large"], out["small"], out["clip"].astype(np.int64), out["sim_frame"].astype(np.int64),

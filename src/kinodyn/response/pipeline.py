@@ -31,8 +31,8 @@ from kinodyn.motion import Motion
 from kinodyn.response.align import AlignConfig, fast_align
 from kinodyn.response.search import body_tracks, exhaustive, windows
 
-__all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "ease_weights", "eieo",
-           "label", "label_search", "looped", "observe", "recover", "respond"]
+__all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "check_inputs",
+           "ease_weights", "eieo", "label", "label_search", "looped", "observe", "recover", "respond"]
 
 
 @dataclass(frozen=True)
@@ -159,7 +159,9 @@ def ease_weights(n: int) -> np.ndarray:
     return eieo(np.linspace(0.0, 1.0, n)) if n > 1 else np.ones(max(n, 0))
 
 
-def _check_inputs(base: Motion, library) -> None:
+def check_inputs(base: Motion, library) -> None:
+    """Raise a kinodyn error unless ``base`` can play against ``library``: a non-empty library of the base's
+    skeleton and frame rate."""
     if len(library) == 0:
         raise ParameterError("the reaction library is empty")
     if not base.skeleton.same_topology(library.skeleton):
@@ -426,7 +428,7 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
         MotionError: base and library of different skeletons or frame rates.
         SimulationDivergedError: the physics blew up.
     """
-    _check_inputs(base, library)
+    check_inputs(base, library)
     obs = observe(base, impact, config, feature_times)
     world, hit, track, c, t0, states, lookahead = (obs.world, obs.hit, obs.track, obs.impact_frame, obs.choice_frame,
                                                    obs.states, obs.lookahead)
