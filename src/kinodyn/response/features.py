@@ -24,7 +24,7 @@ from kinodyn.errors import ParameterError
 from kinodyn.math import quat
 from kinodyn.math.kernels import qmul
 
-__all__ = ["FEATURE_SETS", "SPINE", "FEET", "features", "feature_names"]
+__all__ = ["FEATURE_SETS", "FEET", "SPINE", "feature_names", "features"]
 
 FEATURE_SETS = ("large", "small")
 #: Segments along the spine (pelvis, abdomen, chest, head) and the feet, on the built-in skeleton;
@@ -117,14 +117,37 @@ def _large(states, q, origin) -> np.ndarray:
     return out.ravel()
 
 
+@numba.njit(cache=True)
+def _small_values(q, com, com_vel, chest_w, pelvis, feet, out):  # pragma: no cover - compiled
+    """The 20 ``small`` values into ``out`` from the three slices' centre-of-mass positions and velocities
+    ``com, com_vel (3, 3)``, the chest's angular velocity ``chest_w (2, 3)`` at 0.1 and 0.2 s, the pelvis'
+    orientation ``pelvis (4,)`` and the foot contacts ``feet (2,)`` at 0.2 s: the vectors rotated by ``q``
+    (the arithmetic of ``quat.mul_vec`` and ``quat.mul``, in the same order)."""
+    vec = np.empty((6, 3))
+    vec[:3] = com_vel
+    vec[3:5] = chest_w
+    m = qmul(q[0], q[1], q[2], q[3], pelvis[0], pelvis[1], pelvis[2], pelvis[3])
+    up = _rotate(np.array([m[0], m[1], m[2], m[3]]), np.array([[0.0, 0.0, 1.0]]))
+    r = _rotate(q, vec[:5])
+    for t in range(3):
+        out[4 * t] = com[t, 2]
+        for k in range(3):
+            out[4 * t + 1 + k] = r[t, k]
+    out[12], out[13], out[14], out[15] = r[3, 0], r[3, 1], r[4, 0], r[4, 1]
+    out[16], out[17] = up[0, 0], up[0, 1]
+    out[18] = 1.0 if feet[0] else 0.0
+    out[19] = 1.0 if feet[1] else 0.0
+
+
 def _small(states, q, origin) -> np.ndarray:
     names = list(states[0].names)
-    chest, pelvis = _index(names, ("Spine1",), "small")[0], _index(names, ("Hips",), "small")[0]
-    vec = np.stack([s.com_vel for s in states] + [s.angvel[chest] for s in states[1:]])  # (5, 3)
-    r = _rotate(q, vec)
-    up = quat.mul_vec(quat.mul(q, states[-1].quat[pelvis]), [0.0, 0.0, 1.0])
-    com = np.concatenate([np.array([[s.com[2]] for s in states]), r[:3]], axis=1).ravel()
-    return np.concatenate([com, r[3:, :2].ravel(), up[:2], states[-1].feet.astype(np.float64)])
+    chest, pelvis = _index(names, ("Spine1", "Hips"), "small")
+    out = np.empty(20)
+    _small_values(q, np.array([s.com for s in states], dtype=np.float64),
+                  np.array([s.com_vel for s in states], dtype=np.float64),
+                  np.array([s.angvel[chest] for s in states[1:]], dtype=np.float64),
+                  np.ascontiguousarray(states[-1].quat[pelvis], dtype=np.float64), states[-1].feet, out)
+    return out
 
 
 def features(states, kind: str = "large") -> np.ndarray:
