@@ -124,13 +124,13 @@ def test_training_rejects_bad_input(lib):
 @pytest.mark.parametrize("kind", ["large", "small"])
 def test_shipped_models_are_for_the_builtin_library(kind, lib, small_set):
     """The default models ship with the package: trained for the built-in library (rolls included) on at
-    least 5,500 throws, the command that reproduces them in their JSON, reloaded without pickle, small."""
+    least 5,500 throws, the command that reproduces them in their JSON, reloaded without pickle, under 14 MB (the large set's 198 values per support vector)."""
     model = ReactionModel.load(DEFAULT_MODEL / kind, lib)
     assert model.kind == kind and model.clips == lib.names
     assert model.info["cases"] >= 5500
     assert model.info["command"].startswith("kinodyn response train ") and f"--kind {kind}" in model.info["command"]
     assert 0.0 < model.info["cv_accuracy"] <= model.info["cv_choice_d_within_10pct"] <= 1.0
-    assert (DEFAULT_MODEL / kind / "model.skops").stat().st_size < 8e6
+    assert (DEFAULT_MODEL / kind / "model.skops").stat().st_size < 14e6
     ok = small_set.valid()
     k = model.predict_features(getattr(small_set, kind)[ok])
     assert np.all((k >= 0) & (k < len(lib)))

@@ -39,7 +39,7 @@ def _scene(name: str, r, impact):
 def demo(out: Path) -> list[str]:
     from kinodyn.io import save
     from kinodyn.response.classifier import ReactionModel
-    from kinodyn.response.command import DEFAULT_MODEL
+    from kinodyn.response.command import DEFAULT_KIND, DEFAULT_MODEL
     from kinodyn.response.library import builtin
     from kinodyn.response.pipeline import respond
     from kinodyn.response.plots import timeline
@@ -47,7 +47,8 @@ def demo(out: Path) -> list[str]:
     out = Path(out) / "response"
     out.mkdir(parents=True, exist_ok=True)
     lib = builtin()
-    model = ReactionModel.load(DEFAULT_MODEL / "large", lib) if (DEFAULT_MODEL / "large").is_dir() else None
+    folder = DEFAULT_MODEL / DEFAULT_KIND
+    model = ReactionModel.load(folder, lib) if folder.is_dir() else None
     lines, scenes = [], []
     for name, (base, impact) in _cases().items():
         r = respond(base, lib, impact, model)
