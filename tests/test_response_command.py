@@ -123,6 +123,8 @@ def test_train_on_a_clip_folder_then_play_with_that_model(tmp_path, capsys):
     assert "exhaustive search" not in captured.err and any(f"clip {n} " in captured.out for n in names)
     with pytest.raises(KinodynError):
         ReactionModel.load(DEFAULT_MODEL / "small", lib)
+    assert main(["response", "play", "--base", "walk", "--fps", "30", "--ball", "9,180,1.5,chest",
+                 "-o", str(out)]) == 2, "--fps without --library is refused"
 
 
 def test_train_refuses_a_base_motion_of_another_skeleton_before_simulating(tmp_path):
@@ -140,3 +142,9 @@ def test_train_refuses_a_base_motion_of_another_skeleton_before_simulating(tmp_p
         generate(10, base="walk", library=folder, workers=1)
     with pytest.raises(KinodynError, match="cases"):
         generate(0, base="walk", workers=1)
+    for bad in ({"fps": 60.0}, {"fps": -1.0, "library": folder}):
+        with pytest.raises(KinodynError, match="fps"):
+            generate(10, base="walk", workers=1, **bad)
+    # resampled to the base motion's rate, the same clip labels the throws
+    ds = generate(4, base="walk", library=folder, fps=60.0, workers=1, show_progress=False)
+    assert "@ 60 fps" in ds.meta["library"] and ds.per_clip.shape == (4, 1) and np.all(ds.clip[ds.valid()] == 0)

@@ -1,9 +1,9 @@
 """``kinodyn response train|play``: train the reaction classifier, or play one response and explain it.
 
-    kinodyn response train [--cases N] [--base walk|FILE] [--library DIR] [--backend local|ray] [--address ADDR]
-                           [--workers N] -o MODEL_DIR
+    kinodyn response train [--cases N] [--base walk|FILE] [--library DIR [--fps F]] [--backend local|ray]
+                           [--address ADDR] [--workers N] -o MODEL_DIR
     kinodyn response play --base walk --ball SPEED,DIRECTION,HEIGHT,TARGET | --seed N [--model DIR]
-                          [--exhaustive] [--library DIR] -o out.bvh [--html out.html] [--explain DIR]
+                          [--exhaustive] [--library DIR [--fps F]] -o out.bvh [--html out.html] [--explain DIR]
 
 ``DIRECTION`` is the ball's heading of travel in degrees (180 flies at a walker's face, 0 at its back).
 """
@@ -30,6 +30,22 @@ DEFAULT_MODEL = Path(__file__).resolve().parent / "model"
 DEFAULT_KIND = "small"
 
 
+_FPS_HELP = "frame rate to resample the --library clips and the base motion to (default: the first clip's)"
+
+
+def _library(args):
+    """The reaction library of ``--library`` (resampled to ``--fps``), or the built-in one."""
+    from kinodyn.response.library import builtin, from_folder
+
+    if args.library is None:
+        if args.fps is not None:
+            raise ParameterError("--fps resamples the clips of --library; the built-in library is at 60 fps")
+        return builtin()
+    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
+        raise ParameterError(f"--fps must be a positive number, got {args.fps}")
+    return from_folder(args.library, fps=args.fps)
+
+
 def add_arguments(p) -> None:
     sub = p.add_subparsers(dest="action", required=True)
     t = sub.add_parser("train", help="generate labelled throws and train the classifier")
@@ -40,6 +56,7 @@ def add_arguments(p) -> None:
                    help="base motion: a built-in clip (walk, idle, fighting_stance) or a BVH file (default walk)")
     t.add_argument("--library", help="folder of BVH reaction clips to label against (default: the built-in "
                    "library); the base motion must be on their skeleton")
+    t.add_argument("--fps", type=float, help=_FPS_HELP)
     t.add_argument("--kind", choices=["large", "small"], default="large", help="feature set (default large)")
     t.add_argument("--backend", choices=["local", "ray"], default="local")
     t.add_argument("--address", help="Ray cluster address (default: start Ray here)")
@@ -55,6 +72,7 @@ def add_arguments(p) -> None:
                    "with --library)")
     q.add_argument("--exhaustive", action="store_true", help="choose by exhaustive search, no model")
     q.add_argument("--library", help="folder of BVH reaction clips instead of the built-in library")
+    q.add_argument("--fps", type=float, help=_FPS_HELP)
     q.add_argument("-o", "--output", required=True, help="motion file to write (.bvh or .npz)")
     q.add_argument("--html", help="also write a viewer page")
     q.add_argument("--explain", help="folder for explain.json and the plots")
@@ -81,19 +99,18 @@ def _ball(args):
 def _train(args) -> int:
     from kinodyn.response.classifier import train
     from kinodyn.response.dataset import generate
-    from kinodyn.response.library import builtin, from_folder
-
     if args.cases < 10:
         raise ParameterError(f"--cases must be at least 10, got {args.cases}")
     out = Path(args.output)
-    lib = builtin() if args.library is None else from_folder(args.library)
-    ds = generate(args.cases, args.seed, args.base, library=args.library, workers=args.workers,
+    lib = _library(args)
+    ds = generate(args.cases, args.seed, args.base, library=args.library, fps=args.fps, workers=args.workers,
                   backend=args.backend, address=args.address, resume_dir=args.resume or out / "chunks",
                   chunk_size=args.chunk_size)
     ok = ds.valid()
     model = train(getattr(ds, args.kind)[ok], ds.clip[ok], args.kind, lib, errors=ds.per_clip[ok])
     # the command names files and folders as their last part (the rest is where they were on this machine)
     library = "" if args.library is None else f" --library {Path(args.library).name}"
+    library += "" if args.fps is None else f" --fps {args.fps:g}"
     base = Path(args.base).name if Path(args.base).exists() else args.base
     model.info.update({"seed": args.seed, "base": base, "command": f"kinodyn response train --cases {args.cases} "
                        f"--seed {args.seed} --base {base}{library} --kind {args.kind} -o {out.name}"})
@@ -173,11 +190,10 @@ def _play(args) -> int:
     from kinodyn.io import save
     from kinodyn.response.classifier import ReactionModel
     from kinodyn.response.dataset import load_base
-    from kinodyn.response.library import builtin, from_folder
     from kinodyn.response.pipeline import respond
 
     ball = _ball(args)
-    lib = builtin() if args.library is None else from_folder(args.library)
+    lib = _library(args)
     base = load_base(args.base, lib.fps)
     select = None
     if not args.exhaustive and args.model is None and args.library is not None:

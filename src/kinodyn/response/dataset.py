@@ -52,20 +52,20 @@ def load_base(base: str, fps: float):
 
 
 @lru_cache(maxsize=4)
-def _setup(base: str, library: str | None = None):
+def _setup(base: str, library: str | None = None, fps: float | None = None):
     """``(base motion, reaction library)`` of one job: the built-in library, or the BVH clips of folder
-    ``library``; built once per process."""
+    ``library`` (resampled to ``fps``, default the first clip's rate); built once per process."""
     from kinodyn.response.library import builtin, from_folder
     from kinodyn.response.pipeline import check_inputs
 
-    lib = builtin() if library is None else from_folder(library)
+    lib = builtin() if library is None else from_folder(library, fps=fps)
     motion = load_base(base, lib.fps)
     check_inputs(motion, lib)
     return motion, lib
 
 
 def label_chunk(tasks: list) -> dict:
-    """Simulate and label cases ``[(seed, i, base), ...]``, or ``[(seed, i, base, library folder), ...]``
+    """Simulate and label cases ``[(seed, i, base), ...]``, or ``[(seed, i, base, library folder, fps), ...]``
     for a library of BVH clips (one worker job; the library is built once per process). Cases whose
     simulation fails get label -1."""
     rows = {"large": [], "small": [], "clip": [], "sim_frame": [], "clip_frame": [], "error": [], "per_clip": [],
@@ -181,9 +181,9 @@ class Dataset:
             raise FileFormatError(f"cannot read response dataset: {e}", path) from None
 
 
-def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, workers: int | None = None,
-             backend: str = "local", address: str | None = None, resume_dir=None, chunk_size: int = 20,
-             show_progress=None) -> Dataset:
+def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, fps: float | None = None,
+             workers: int | None = None, backend: str = "local", address: str | None = None, resume_dir=None,
+             chunk_size: int = 20, show_progress=None) -> Dataset:
     """``cases`` labelled throws (see :func:`ball_for`) at a character playing ``base``, labelled against
     the built-in reaction library, or against the BVH clips of folder ``library``.
 
@@ -194,6 +194,7 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, wor
             library's skeleton.
         library: a folder of BVH reaction clips (default: the built-in library); on a Ray cluster, a path
             every node can read.
+        fps: the rate the folder's clips and the base motion are resampled to (default: the first clip's).
         workers, backend, address, resume_dir, chunk_size, show_progress: as :func:`kinodyn.parallel.run`.
 
     Raises:
@@ -204,9 +205,13 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, wor
 
     if int(cases) < 1:
         raise ParameterError(f"cases must be >= 1, got {cases}")
+    if fps is not None and (library is None or not (np.isfinite(fps) and fps > 0)):
+        raise ParameterError(f"fps resamples the clips of a library folder to a positive rate, got fps={fps} "
+                             f"{'without a folder (the built-in library is at 60 fps)' if library is None else ''}")
     folder = None if library is None else str(Path(library).resolve())
-    _, lib = _setup(base, folder)  # bad input is reported here, not as failed cases
-    tasks = [(int(seed), i, base) + (() if folder is None else (folder,)) for i in range(int(cases))]
+    rate = None if fps is None else float(fps)
+    _, lib = _setup(base, folder, rate)  # bad input is reported here, not as failed cases
+    tasks = [(int(seed), i, base) + (() if folder is None else (folder, rate)) for i in range(int(cases))]
     out = parallel.run(label_chunk, tasks, chunk_size=chunk_size, workers=workers, backend=backend,
                        address=address, resume_dir=resume_dir, desc=f"throws at {base}", show_progress=show_progress)
     meta = {"format": FORMAT, "seed": int(seed), "base": base, "cases": int(cases), "clips": list(lib.names),
