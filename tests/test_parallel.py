@@ -49,7 +49,8 @@ def test_an_interrupted_run_resumes_from_its_chunks(tmp_path):
     with pytest.raises(RuntimeError):
         parallel.run(counting_chunk, bad, chunk_size=3, workers=1, resume_dir=tmp_path)
     names = sorted(p.name for p in tmp_path.iterdir())
-    assert [n[:12] for n in names] == ["chunk-00000-", "chunk-00001-"] and all(n.endswith(".npz") for n in names)
+    assert [n[:12] for n in names] == ["chunk-00000-", "chunk-00001-"]
+    assert all(n.endswith(".npz") for n in names)
     # The finished chunks are read back, not recomputed: only the last two chunks run again.
     CALLS.clear()
     out = parallel.run(counting_chunk, tasks, chunk_size=3, workers=1, resume_dir=tmp_path)
@@ -60,12 +61,12 @@ def test_an_interrupted_run_resumes_from_its_chunks(tmp_path):
 def test_a_resumed_run_reads_back_only_chunks_of_its_own_tasks(tmp_path):
     """Chunks of another run in the same folder (another seed, chunk size or function) are not taken for
     this run's; a longer run reuses the chunks it shares with a shorter one."""
-    six = parallel.run(seeded_chunk, [(7, i) for i in range(6)], chunk_size=3, workers=1, resume_dir=tmp_path)
-    other = parallel.run(seeded_chunk, [(8, i) for i in range(6)], chunk_size=3, workers=1, resume_dir=tmp_path)
+    seven, eight = [(7, i) for i in range(6)], [(8, i) for i in range(6)]
+    six = parallel.run(seeded_chunk, seven, chunk_size=3, workers=1, resume_dir=tmp_path)
+    other = parallel.run(seeded_chunk, eight, chunk_size=3, workers=1, resume_dir=tmp_path)
     assert not np.allclose(six["x"], other["x"]), "seed 8 computed, not read back from seed 7's chunks"
-    np.testing.assert_array_equal(other["x"], parallel.run(seeded_chunk, [(8, i) for i in range(6)], chunk_size=3,
-                                                           workers=1)["x"])
-    resized = parallel.run(seeded_chunk, [(7, i) for i in range(6)], chunk_size=2, workers=1, resume_dir=tmp_path)
+    np.testing.assert_array_equal(other["x"], parallel.run(seeded_chunk, eight, chunk_size=3, workers=1)["x"])
+    resized = parallel.run(seeded_chunk, seven, chunk_size=2, workers=1, resume_dir=tmp_path)
     np.testing.assert_array_equal(resized["x"], six["x"])
     CALLS.clear()
     parallel.run(counting_chunk, [(i, "go") for i in range(6)], chunk_size=3, workers=1, resume_dir=tmp_path)

@@ -124,7 +124,8 @@ def test_training_rejects_bad_input(lib):
 @pytest.mark.parametrize("kind", ["large", "small"])
 def test_shipped_models_are_for_the_builtin_library(kind, lib, small_set):
     """The default models ship with the package: trained for the built-in library (rolls included) on at
-    least 5,500 throws, the command that reproduces them in their JSON, reloaded without pickle, under 14 MB (the large set's 198 values per support vector)."""
+    least 5,500 throws, the command that reproduces them in their JSON, reloaded without pickle, under 14 MB
+    (the large set's 198 values per support vector)."""
     model = ReactionModel.load(DEFAULT_MODEL / kind, lib)
     assert model.kind == kind and model.clips == lib.names
     assert model.info["cases"] >= 5500

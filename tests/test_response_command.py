@@ -106,8 +106,9 @@ def test_train_on_a_clip_folder_then_play_with_that_model(tmp_path, capsys):
         save(folder / f"{name}.bvh", data.load(name))
     save(tmp_path / "walk.bvh", data.load("walk"))
     model_dir, ds_path = tmp_path / "model", tmp_path / "ds.npz"
-    assert main(["response", "train", "--cases", "48", "--base", str(tmp_path / "walk.bvh"), "--library", str(folder),
-                 "--workers", "2", "--chunk-size", "12", "--kind", "small", "--dataset", str(ds_path),
+    assert main(["response", "train", "--cases", "48", "--base", str(tmp_path / "walk.bvh"),
+                 "--library", str(folder), "--workers", "2", "--chunk-size", "12", "--kind", "small",
+                 "--dataset", str(ds_path),
                  "-o", str(model_dir)]) == 0
     ds = Dataset.load(ds_path)
     assert tuple(ds.meta["clips"]) == names and ds.per_clip.shape == (48, 4)
@@ -147,4 +148,5 @@ def test_train_refuses_a_base_motion_of_another_skeleton_before_simulating(tmp_p
             generate(10, base="walk", workers=1, **bad)
     # resampled to the base motion's rate, the same clip labels the throws
     ds = generate(4, base="walk", library=folder, fps=60.0, workers=1, show_progress=False)
-    assert "@ 60 fps" in ds.meta["library"] and ds.per_clip.shape == (4, 1) and np.all(ds.clip[ds.valid()] == 0)
+    assert "@ 60 fps" in ds.meta["library"] and ds.per_clip.shape == (4, 1)
+    assert np.all(ds.clip[ds.valid()] == 0)

@@ -85,8 +85,8 @@ def _accuracy(models, n: int, res: BenchResult) -> None:
     for kind, model in models.items():
         k = model.selector().predict_features(getattr(ds, kind)[ok])
         res.add(f"accuracy_{kind}", float(np.mean(k == ds.clip[ok])), "fraction")
-        res.add(f"choice_d_within_10pct_{kind}", float(np.mean(ds.per_clip[ok][np.arange(len(k)), k] <= _NEAR * best)),
-                "fraction")
+        chosen = ds.per_clip[ok][np.arange(len(k)), k]
+        res.add(f"choice_d_within_10pct_{kind}", float(np.mean(chosen <= _NEAR * best)), "fraction")
     res.add("accuracy_cases", int(ok.sum()), "cases")
 
 
@@ -126,9 +126,11 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
             ts, k = _timed(lambda: sel.choose(states), 5)  # noqa: B023
             ta, al = _timed(lambda: fast_align(None, track, lib, k), 5)  # noqa: B023
             tf, _ = _timed(lambda: fast_align(None, track, lib, sel.choose(states)), 5)  # noqa: B023
-            tk, p_sk = _timed(lambda: models[kind].probabilities(features(states, kind)[None])[0], 3)  # noqa: B023
+            model = models[kind]
+            tk, p_sk = _timed(lambda: model.probabilities(features(states, kind)[None])[0], 3)  # noqa: B023
             if int(np.argmax(p_sk)) != k:
-                raise AssertionError(f"the compiled {kind} selector chose clip {k}, the model {int(np.argmax(p_sk))}")
+                raise AssertionError(f"the compiled {kind} selector chose clip {k}, the model "
+                                     f"{int(np.argmax(p_sk))}")
             for key, v in zip(("fast", "sel", "align", "sk"), (tf, ts, ta, tk), strict=True):
                 t[kind][key].append(v)
             if kind == DEFAULT_KIND:
@@ -144,11 +146,13 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
         res.add(f"alignment_ms{end}", ms["align"], "ms")
         res.add(f"selection_ms_sklearn{end}", ms["sk"], "ms")
         counts = selectors[kind].counts
-        res.add(f"selection_float64_rechecks{end}", counts["float64"] / max(1, sum(counts.values())), "fraction")
+        rechecks = counts["float64"] / max(1, sum(counts.values()))
+        res.add(f"selection_float64_rechecks{end}", rechecks, "fraction")
     res.add("d_ratio_median", float(np.median(ratios)), "ratio")
     res.add("d_ratio_p95", float(np.percentile(ratios, 95)), "ratio")
-    res.notes["fast_path"] = (f"unsuffixed fast-path keys are the shipped chooser's, the {DEFAULT_KIND} feature set's "
-                              "model; the _large and _small keys time each model's fast path on the same throws")
+    res.notes["fast_path"] = (f"unsuffixed fast-path keys are the shipped chooser's, the {DEFAULT_KIND} "
+                              "feature set's model; the _large and _small keys time each model's fast path "
+                              "on the same throws")
     res.add("held_out_cases", n, "cases")
 
 

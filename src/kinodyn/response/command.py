@@ -3,7 +3,8 @@
     kinodyn response train [--cases N] [--base walk|FILE] [--library DIR [--fps F]] [--backend local|ray]
                            [--address ADDR] [--workers N] -o MODEL_DIR
     kinodyn response play --base walk --ball SPEED,DIRECTION,HEIGHT,TARGET | --seed N [--model DIR]
-                          [--exhaustive] [--library DIR [--fps F]] -o out.bvh [--html out.html] [--explain DIR]
+                          [--exhaustive] [--library DIR [--fps F]] -o out.bvh [--html out.html]
+                          [--explain DIR]
 
 ``DIRECTION`` is the ball's heading of travel in degrees (180 flies at a walker's face, 0 at its back).
 """
@@ -53,7 +54,8 @@ def add_arguments(p) -> None:
     t.add_argument("--cases", type=int, default=5500, help="number of throws (default 5500)")
     t.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
     t.add_argument("--base", default="walk",
-                   help="base motion: a built-in clip (walk, idle, fighting_stance) or a BVH file (default walk)")
+                   help="base motion: a built-in clip (walk, idle, fighting_stance) or a BVH file "
+                   "(default walk)")
     t.add_argument("--library", help="folder of BVH reaction clips to label against (default: the built-in "
                    "library); the base motion must be on their skeleton")
     t.add_argument("--fps", type=float, help=_FPS_HELP)
@@ -68,8 +70,8 @@ def add_arguments(p) -> None:
     q.add_argument("--base", default="walk", help="base motion: a built-in clip name or a BVH file")
     q.add_argument("--ball", help="SPEED,DIRECTION,HEIGHT,TARGET (m/s, degrees, m, landmark)")
     q.add_argument("--seed", type=int, help="a random ball (as in training) instead of --ball")
-    q.add_argument("--model", help="model folder (default: the shipped small-feature model, or exhaustive search "
-                   "with --library)")
+    q.add_argument("--model", help="model folder (default: the shipped small-feature model, or exhaustive "
+                   "search with --library)")
     q.add_argument("--exhaustive", action="store_true", help="choose by exhaustive search, no model")
     q.add_argument("--library", help="folder of BVH reaction clips instead of the built-in library")
     q.add_argument("--fps", type=float, help=_FPS_HELP)
@@ -112,8 +114,9 @@ def _train(args) -> int:
     library = "" if args.library is None else f" --library {Path(args.library).name}"
     library += "" if args.fps is None else f" --fps {args.fps:g}"
     base = Path(args.base).name if Path(args.base).exists() else args.base
-    model.info.update({"seed": args.seed, "base": base, "command": f"kinodyn response train --cases {args.cases} "
-                       f"--seed {args.seed} --base {base}{library} --kind {args.kind} -o {out.name}"})
+    model.info.update({"seed": args.seed, "base": base,
+                       "command": f"kinodyn response train --cases {args.cases} --seed {args.seed} "
+                                  f"--base {base}{library} --kind {args.kind} -o {out.name}"})
     model.save(out)
     if args.dataset:
         ds.save(args.dataset)

@@ -23,7 +23,8 @@ from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
 from kinodyn.response.pipeline import Ball, label_search, observe
 
-__all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips", "load_base"]
+__all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips",
+           "load_base"]
 
 FORMAT = "kinodyn.response-dataset/1"
 #: Landmarks the balls aim at.
@@ -206,8 +207,9 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, fps
     if int(cases) < 1:
         raise ParameterError(f"cases must be >= 1, got {cases}")
     if fps is not None and (library is None or not (np.isfinite(fps) and fps > 0)):
-        raise ParameterError(f"fps resamples the clips of a library folder to a positive rate, got fps={fps} "
-                             f"{'without a folder (the built-in library is at 60 fps)' if library is None else ''}")
+        alone = " without a folder (the built-in library is at 60 fps)" if library is None else ""
+        raise ParameterError(f"fps resamples the clips of a library folder to a positive rate, got "
+                             f"fps={fps}{alone}")
     folder = None if library is None else str(Path(library).resolve())
     rate = None if fps is None else float(fps)
     _, lib = _setup(base, folder, rate)  # bad input is reported here, not as failed cases
