@@ -34,19 +34,6 @@ DEFAULT_KIND = "small"
 _FPS_HELP = "frame rate to resample the --library clips and the base motion to (default: the first clip's)"
 
 
-def _library(args):
-    """The reaction library of ``--library`` (resampled to ``--fps``), or the built-in one."""
-    from kinodyn.response.library import builtin, from_folder
-
-    if args.library is None:
-        if args.fps is not None:
-            raise ParameterError("--fps resamples the clips of --library; the built-in library is at 60 fps")
-        return builtin()
-    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
-        raise ParameterError(f"--fps must be a positive number, got {args.fps}")
-    return from_folder(args.library, fps=args.fps)
-
-
 def add_arguments(p) -> None:
     sub = p.add_subparsers(dest="action", required=True)
     t = sub.add_parser("train", help="generate labelled throws and train the classifier")
@@ -100,15 +87,16 @@ def _ball(args):
 
 def _train(args) -> int:
     from kinodyn.response.classifier import train
-    from kinodyn.response.dataset import generate
+    from kinodyn.response.dataset import generate, setup
+
     if args.cases < 10:
         raise ParameterError(f"--cases must be at least 10, got {args.cases}")
     out = Path(args.output)
-    lib = _library(args)
     ds = generate(args.cases, args.seed, args.base, library=args.library, fps=args.fps, workers=args.workers,
                   backend=args.backend, address=args.address, resume_dir=args.resume or out / "chunks",
                   chunk_size=args.chunk_size)
     ok = ds.valid()
+    lib = setup(args.base, args.library, args.fps)[1]  # the library generate built, from its cache
     model = train(getattr(ds, args.kind)[ok], ds.clip[ok], args.kind, lib, errors=ds.per_clip[ok])
     # the command names files and folders as their last part (the rest is where they were on this machine)
     library = "" if args.library is None else f" --library {Path(args.library).name}"
@@ -192,12 +180,11 @@ def viewer_overlays(r, character: int = 0) -> list:
 def _play(args) -> int:
     from kinodyn.io import save
     from kinodyn.response.classifier import ReactionModel
-    from kinodyn.response.dataset import load_base
+    from kinodyn.response.dataset import setup
     from kinodyn.response.pipeline import respond
 
     ball = _ball(args)
-    lib = _library(args)
-    base = load_base(args.base, lib.fps)
+    base, lib = setup(args.base, args.library, args.fps)
     select = None
     if not args.exhaustive and args.model is None and args.library is not None:
         print("kinodyn: note: the shipped model chooses among the built-in clips; the clips of --library are "

@@ -24,7 +24,7 @@ from kinodyn.response.features import features
 from kinodyn.response.pipeline import Ball, label_search, observe
 
 __all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips",
-           "load_base"]
+           "load_base", "setup"]
 
 FORMAT = "kinodyn.response-dataset/1"
 #: Landmarks the balls aim at.
@@ -63,6 +63,23 @@ def _setup(base: str, library: str | None = None, fps: float | None = None):
     motion = load_base(base, lib.fps)
     check_inputs(motion, lib)
     return motion, lib
+
+
+def _folder_and_rate(library, fps) -> tuple:
+    """The job arguments of :func:`_setup` for a library folder and a rate (checked), as plain values."""
+    if fps is not None and (library is None or not (np.isfinite(fps) and fps > 0)):
+        alone = " without a folder (the built-in library is at 60 fps)" if library is None else ""
+        raise ParameterError(f"fps resamples the clips of a library folder to a positive rate, got "
+                             f"fps={fps}{alone}")
+    return (None if library is None else str(Path(library).resolve())), (None if fps is None else float(fps))
+
+
+def setup(base: str, library=None, fps: float | None = None):
+    """``(base motion, reaction library)``: ``base`` a built-in clip name or a motion file, against the
+    built-in library or the BVH clips of folder ``library`` (both resampled to ``fps``, default the first
+    clip's rate), checked to play together (:func:`kinodyn.response.pipeline.check_inputs`). Built once
+    per process and arguments (the library's search windows included)."""
+    return _setup(base, *_folder_and_rate(library, fps))
 
 
 def label_chunk(tasks: list) -> dict:
@@ -206,12 +223,7 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, fps
 
     if int(cases) < 1:
         raise ParameterError(f"cases must be >= 1, got {cases}")
-    if fps is not None and (library is None or not (np.isfinite(fps) and fps > 0)):
-        alone = " without a folder (the built-in library is at 60 fps)" if library is None else ""
-        raise ParameterError(f"fps resamples the clips of a library folder to a positive rate, got "
-                             f"fps={fps}{alone}")
-    folder = None if library is None else str(Path(library).resolve())
-    rate = None if fps is None else float(fps)
+    folder, rate = _folder_and_rate(library, fps)
     _, lib = _setup(base, folder, rate)  # bad input is reported here, not as failed cases
     tasks = [(int(seed), i, base) + (() if folder is None else (folder, rate)) for i in range(int(cases))]
     out = parallel.run(label_chunk, tasks, chunk_size=chunk_size, workers=workers, backend=backend,
