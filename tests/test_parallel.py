@@ -80,6 +80,19 @@ def test_a_resumed_run_reads_back_only_chunks_of_its_own_tasks(tmp_path):
     assert parallel.chunk_key(seeded_chunk, [(7, 0)]) != parallel.chunk_key(counting_chunk, [(7, 0)])
 
 
+def test_a_resumed_run_reads_back_only_chunks_of_its_own_context(tmp_path):
+    """Chunks computed in another context (what the tasks read besides themselves: input files) are
+    computed again; the same context reads them back; no context keeps the keys it had."""
+    tasks = [(i, "go") for i in range(4)]
+    CALLS.clear()
+    parallel.run(counting_chunk, tasks, chunk_size=2, workers=1, resume_dir=tmp_path, context="clips v1")
+    parallel.run(counting_chunk, tasks, chunk_size=2, workers=1, resume_dir=tmp_path, context="clips v1")
+    assert CALLS == [[0, 1], [2, 3]], "the same context reads its chunks back"
+    parallel.run(counting_chunk, tasks, chunk_size=2, workers=1, resume_dir=tmp_path, context="clips v2")
+    assert CALLS == [[0, 1], [2, 3]] * 2, "another context computes its own chunks"
+    assert parallel.chunk_key(counting_chunk, tasks[:2], "") == parallel.chunk_key(counting_chunk, tasks[:2])
+
+
 def test_bad_arguments():
     with pytest.raises(ParameterError, match="backend"):
         parallel.run(seeded_chunk, [(0, 1)], backend="dask")

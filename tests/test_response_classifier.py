@@ -77,6 +77,36 @@ def test_dataset_is_the_same_for_one_and_two_workers(small_set, tmp_path):
         Dataset.load(tmp_path / "other.npz")
 
 
+def test_a_resumed_run_labels_against_the_clips_as_they_are_now(tmp_path):
+    """Chunks kept by an interrupted run are read back only for the same clips and base motion: a clip
+    edited under the same name, or a clip added, is labelled anew, and the result is what a fresh run
+    gives (before, the old chunks were taken as they were, labelled against the old clips, and the
+    in-process library cache kept the old clips too)."""
+    from kinodyn.io import save
+
+    folder, base, resume = tmp_path / "clips", tmp_path / "walk.bvh", tmp_path / "chunks"
+    folder.mkdir()
+    save(base, data.load("walk"))
+    for name in ("fall_forward", "step_back_small"):
+        save(folder / f"{name}.bvh", data.load(name))
+
+    def run(**kw):
+        return generate(4, seed=3, base=str(base), library=folder, workers=1, chunk_size=2, show_progress=False,
+                        **kw)
+
+    first = run(resume_dir=resume)
+    save(folder / "fall_forward.bvh", data.load("fall_side"))  # another reaction under the same name
+    edited = run(resume_dir=resume)
+    fresh = run()
+    ok = fresh.valid()
+    assert not np.array_equal(edited.per_clip[ok, 0], first.per_clip[ok, 0]), "the edited clip is searched"
+    np.testing.assert_array_equal(edited.per_clip, fresh.per_clip)
+    np.testing.assert_array_equal(edited.per_clip[:, 1], first.per_clip[:, 1])  # same simulation, same clip
+    save(folder / "step_forward_small.bvh", data.load("step_forward_small"))
+    more = run(resume_dir=resume)
+    assert more.per_clip.shape == (4, 3) and tuple(more.meta["clips"])[-1] == "step_forward_small"
+
+
 def test_dataset_is_the_same_from_the_ray_backend(small_set):
     ray = pytest.importorskip("ray")
     try:

@@ -110,6 +110,20 @@ class Motion:
         return (f"Motion({label}{self.num_frames} frames at {self.fps:g} fps = {self.duration:.2f} s, "
                 f"{self.num_joints} joints)")
 
+    def digest(self) -> str:
+        """A hash of the motion's content (skeleton, frames, rate and name): two motions with the same
+        digest play the same. 40 hex digits."""
+        import hashlib
+
+        h = hashlib.blake2b(digest_size=20)
+        sk = self.skeleton
+        h.update(f"{self.name}|{self.fps!r}|{','.join(sk.names)}|".encode())
+        for a in (sk.parents, sk.offsets, sk.end_parents, sk.end_offsets, self.root_pos, self.local_rot,
+                  np.zeros(0) if self.translations is None else self.translations):
+            h.update(np.ascontiguousarray(a).tobytes())
+            h.update(b"|")
+        return h.hexdigest()
+
     def replace(self, **changes) -> "Motion":
         """A copy with some fields changed (MJX's ``replace``)."""
         kw = dict(skeleton=self.skeleton, root_pos=self.root_pos, local_rot=self.local_rot, fps=self.fps,

@@ -10,9 +10,10 @@ workers and on Ray.
 A chunk function takes a list of tasks and returns a dict of arrays with one leading row per task.
 With ``resume_dir`` each finished chunk is written there (``chunk-00012-<key>.npz``, no pickles) and a
 rerun skips the chunks already on disk, so an interrupted run resumes where it stopped. A chunk's file
-name carries a key of the chunk function and the chunk's own tasks (:func:`chunk_key`), so a chunk is
-read back only by a run that would compute the same one: a run with another seed, chunk size or
-function in the same folder computes its own chunks, and a run with more tasks reuses the chunks it
+name carries a key of the chunk function, the chunk's own tasks and the run's ``context`` (what the tasks
+read besides themselves, such as a fingerprint of the input files; :func:`chunk_key`), so a chunk is read
+back only by a run that would compute the same one: a run with another seed, chunk size, function or
+context in the same folder computes its own chunks, and a run with more tasks reuses the chunks it
 shares with a shorter one.
 
 Ray is an optional dependency (``pip install kinodyn[ray]``), imported only when asked for.
@@ -51,10 +52,13 @@ def chunks(n: int, size: int) -> list[tuple[int, int]]:
     return [(a, min(a + size, n)) for a in range(0, n, size)]
 
 
-def chunk_key(fn, tasks: list) -> str:
-    """16 hex digits naming chunk function ``fn`` applied to ``tasks``: a hash of the function's module and
-    qualified name and of the tasks' ``repr`` (tasks carry numbers and strings, whose ``repr`` is stable)."""
+def chunk_key(fn, tasks: list, context: str = "") -> str:
+    """16 hex digits naming chunk function ``fn`` applied to ``tasks`` in ``context``: a hash of the
+    function's module and qualified name, of the tasks' ``repr`` (tasks carry numbers and strings, whose
+    ``repr`` is stable) and of ``context`` (the empty context keeps the keys of runs without one)."""
     text = f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', repr(fn))}\n{tasks!r}"
+    if context:
+        text += f"\n{context}"
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
@@ -121,7 +125,8 @@ def _ray(fn, parts, todo, workers, address, bar, done):
 
 
 def run(fn, tasks: list, *, chunk_size: int = 16, workers: int | None = None, backend: str = "local",
-        address: str | None = None, resume_dir=None, desc: str = "", show_progress: bool | None = None) -> dict:
+        address: str | None = None, resume_dir=None, context: str = "", desc: str = "",
+        show_progress: bool | None = None) -> dict:
     """``fn`` over ``tasks`` in chunks; the per-task rows of every chunk's dict of arrays, concatenated.
 
     Args:
@@ -132,8 +137,10 @@ def run(fn, tasks: list, *, chunk_size: int = 16, workers: int | None = None, ba
             Ray started here.
         backend: ``"local"`` or ``"ray"``.
         address: Ray cluster address (default: start Ray locally).
-        resume_dir: folder keeping finished chunks; a chunk of the same function and tasks found there
-            is read back, not recomputed.
+        resume_dir: folder keeping finished chunks; a chunk of the same function, tasks and context found
+            there is read back, not recomputed.
+        context: text naming what the tasks' results depend on besides the tasks (a fingerprint of the
+            files they read): a chunk computed in another context is not read back.
         desc: progress-bar label; show_progress: force the bar on or off (default: on a terminal).
     """
     if backend not in BACKENDS:
@@ -148,7 +155,7 @@ def run(fn, tasks: list, *, chunk_size: int = 16, workers: int | None = None, ba
     paths = []
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
-        paths = [_chunk_path(folder, i, chunk_key(fn, part)) for i, part in enumerate(parts)]
+        paths = [_chunk_path(folder, i, chunk_key(fn, part, context)) for i, part in enumerate(parts)]
         for i, path in enumerate(paths):
             if path.exists():
                 results[i] = _check_result(_load(path), len(parts[i]), i)

@@ -22,6 +22,7 @@ from kinodyn.errors import FileFormatError, KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
 from kinodyn.response.pipeline import Ball, label_search, observe
+from kinodyn.version import __version__
 
 __all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips",
            "load_base", "setup"]
@@ -52,10 +53,17 @@ def load_base(base: str, fps: float):
     return data.load(base)
 
 
+def _files_state(base: str, library: str | None) -> tuple:
+    """Size and modification time of the files a setup reads (the folder's clips, a base motion file):
+    a setup is built again when one of them changed."""
+    files = sorted(Path(library).glob("*.bvh")) if library is not None else []
+    if Path(base).exists():
+        files.append(Path(base))
+    return tuple((str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in files)
+
+
 @lru_cache(maxsize=4)
-def _setup(base: str, library: str | None = None, fps: float | None = None):
-    """``(base motion, reaction library)`` of one job: the built-in library, or the BVH clips of folder
-    ``library`` (resampled to ``fps``, default the first clip's rate); built once per process."""
+def _build(base: str, library: str | None, fps: float | None, state: tuple):
     from kinodyn.response.library import builtin, from_folder
     from kinodyn.response.pipeline import check_inputs
 
@@ -63,6 +71,13 @@ def _setup(base: str, library: str | None = None, fps: float | None = None):
     motion = load_base(base, lib.fps)
     check_inputs(motion, lib)
     return motion, lib
+
+
+def _setup(base: str, library: str | None = None, fps: float | None = None):
+    """``(base motion, reaction library)`` of one job: the built-in library, or the BVH clips of folder
+    ``library`` (resampled to ``fps``, default the first clip's rate); built once per process while the
+    files stay as they are (a clip edited, added or removed builds it again)."""
+    return _build(base, library, fps, _files_state(base, library))
 
 
 def _folder_and_rate(library, fps) -> tuple:
@@ -213,7 +228,9 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, fps
         library: a folder of BVH reaction clips (default: the built-in library); on a Ray cluster, a path
             every node can read.
         fps: the rate the folder's clips and the base motion are resampled to (default: the first clip's).
-        workers, backend, address, resume_dir, chunk_size, show_progress: as :func:`kinodyn.parallel.run`.
+        workers, backend, address, resume_dir, chunk_size, show_progress: as :func:`kinodyn.parallel.run`;
+            the chunks kept in ``resume_dir`` are read back only by a run on the same clips (their content,
+            not only their names), the same base motion and the same kinodyn version.
 
     Raises:
         ParameterError, MotionError: a base motion or library that cannot be used (checked before any
@@ -224,10 +241,13 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, fps
     if int(cases) < 1:
         raise ParameterError(f"cases must be >= 1, got {cases}")
     folder, rate = _folder_and_rate(library, fps)
-    _, lib = _setup(base, folder, rate)  # bad input is reported here, not as failed cases
+    motion, lib = _setup(base, folder, rate)  # bad input is reported here, not as failed cases
     tasks = [(int(seed), i, base) + (() if folder is None else (folder, rate)) for i in range(int(cases))]
+    # chunks kept in resume_dir are read back only for the same clips, base motion and kinodyn version
+    context = f"kinodyn {__version__}, library {lib.fingerprint()}, base {motion.digest()}"
     out = parallel.run(label_chunk, tasks, chunk_size=chunk_size, workers=workers, backend=backend,
-                       address=address, resume_dir=resume_dir, desc=f"throws at {base}", show_progress=show_progress)
+                       address=address, resume_dir=resume_dir, context=context, desc=f"throws at {base}",
+                       show_progress=show_progress)
     meta = {"format": FORMAT, "seed": int(seed), "base": base, "cases": int(cases), "clips": list(lib.names),
             "library": lib.signature(), "targets": list(TARGETS)}
     return Dataset(out["large"], out["small"], out["clip"].astype(np.int64), out["sim_frame"].astype(np.int64),

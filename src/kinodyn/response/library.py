@@ -67,6 +67,14 @@ class ReactionLibrary:
     def clip(self, k: int | str) -> Motion:
         return self.clips.motion(k)
 
+    def fingerprint(self) -> str:
+        """A hash of everything the search reads: every clip's content (:meth:`Motion.digest`) and the
+        search parameters. A clip edited under the same name changes it (unlike :meth:`signature`)."""
+        import hashlib
+
+        text = repr(self.config) + "".join(self.clip(k).digest() for k in range(len(self)))
+        return hashlib.blake2b(text.encode(), digest_size=20).hexdigest()
+
     def signature(self) -> str:
         """A short text naming the clips and skeleton, stored with trained models to catch a mismatch."""
         return f"{len(self)} clips @ {self.fps:g} fps, {self.skeleton.num_joints} joints: " + ",".join(self.names)
