@@ -215,3 +215,21 @@ def test_label_flips_finds_labels_a_faster_ball_changes():
     assert not label_flips(0, range(6), relative=1e-9).any()
     with pytest.raises(ParameterError):
         label_flips(0, [0], relative=0.0)
+
+
+def test_benchmark_accuracy_splits_into_near_ties_and_decided_throws(lib):
+    """``kinodyn bench response`` reports each model's accuracy also on the throws whose runner-up clip is
+    within 1 % of the best (near-ties) and on the others; the two parts recombine into the whole."""
+    from kinodyn.bench import BenchResult
+    from kinodyn.response.bench import _accuracy
+
+    res = BenchResult("response")
+    models = {k: ReactionModel.load(DEFAULT_MODEL / k, lib) for k in ("large", "small")}
+    _accuracy(models, 8, res)
+    m = res.metrics
+    f = m["label_near_tie_fraction"]
+    assert m["accuracy_cases"] == 8 and 0.0 <= f <= 1.0
+    for kind in ("large", "small"):
+        parts = [(f, m[f"accuracy_{kind}_near_ties"]), (1.0 - f, m[f"accuracy_{kind}_decided"])]
+        whole = sum(w * a for w, a in parts if w > 0)
+        assert whole == pytest.approx(m[f"accuracy_{kind}"], abs=1e-12)

@@ -18,11 +18,14 @@ of a few repeats per throw, the median over the throws; numba runs on one thread
 time (``response_ms_end_to_end``) is the median over throws after a process's first response, which
 builds the compiled selector and loads the kernels and is reported alone (``response_ms_first``).
 
-Beside the accuracy, ``label_flip_rate`` is the fraction of held-out throws whose exhaustive label changes
-when the ball is thrown 0.1 % faster, and ``accuracy_ceiling`` (one minus half of it) the most a classifier
-can score against these labels if it gives two such throws, whose features differ far less than
-neighbouring training cases do, the same clip: the best clips are often near-ties, and the simulation
-after a hit is sensitive enough that a change that small reorders them.
+Beside the accuracy, ``label_near_tie_fraction`` is the share of held-out throws whose runner-up clip's
+error D is within 1 % of the best one's, with each model's accuracy on those throws
+(``accuracy_<kind>_near_ties``) and on the others (``accuracy_<kind>_decided``). ``label_flip_rate`` is
+the fraction of held-out throws whose exhaustive label changes when the ball is thrown 0.1 % faster, and
+``accuracy_ceiling`` (one minus half of it) the most a classifier can score against these labels if it
+gives two such throws, whose features differ far less than neighbouring training cases do, the same
+clip: the best clips are often near-ties, and the simulation after a hit is sensitive enough that a
+change that small reorders them.
 
 ``--quick`` scores the shipped models (no retraining) on fewer held-out throws; the full run first
 generates the shipped models' training throws again (their seed and count) and retrains both models on
@@ -70,6 +73,10 @@ def _models(quick: bool, res: BenchResult):
 #: Secondary accuracy measure: the chosen clip's own best error D within this factor of the exhaustive optimum
 #: (the exhaustive labels are often near-ties: the runner-up clip within a few percent of the best).
 _NEAR = 1.10
+#: A label is a near-tie when the runner-up clip's best error D is within this factor of the optimum; the
+#: accuracy is also reported apart on near-ties (``accuracy_<kind>_near_ties``, the share of throws in
+#: ``label_near_tie_fraction``) and on the other throws (``accuracy_<kind>_decided``).
+_TIE = 1.01
 
 
 def _accuracy(models, n: int, res: BenchResult) -> None:
@@ -81,12 +88,18 @@ def _accuracy(models, n: int, res: BenchResult) -> None:
 
     ds = generate(n, seed=_HELD_OUT_SEED, workers=2, show_progress=False)
     ok = ds.valid()
-    best = ds.per_clip[ok].min(axis=1)
+    d = np.sort(ds.per_clip[ok], axis=1)
+    best = d[:, 0]
+    tie = d[:, 1] < _TIE * best  # the runner-up clip within 1 % of the best
     for kind, model in models.items():
         k = model.selector().predict_features(getattr(ds, kind)[ok])
-        res.add(f"accuracy_{kind}", float(np.mean(k == ds.clip[ok])), "fraction")
+        right = k == ds.clip[ok]
+        res.add(f"accuracy_{kind}", float(np.mean(right)), "fraction")
+        res.add(f"accuracy_{kind}_decided", float(np.mean(right[~tie])) if np.any(~tie) else float("nan"), "fraction")
+        res.add(f"accuracy_{kind}_near_ties", float(np.mean(right[tie])) if np.any(tie) else float("nan"), "fraction")
         chosen = ds.per_clip[ok][np.arange(len(k)), k]
         res.add(f"choice_d_within_10pct_{kind}", float(np.mean(chosen <= _NEAR * best)), "fraction")
+    res.add("label_near_tie_fraction", float(np.mean(tie)), "fraction")
     res.add("accuracy_cases", int(ok.sum()), "cases")
 
 
