@@ -50,7 +50,8 @@ def add_arguments(p) -> None:
     t.add_argument("--backend", choices=["local", "ray"], default="local")
     t.add_argument("--address", help="Ray cluster address (default: start Ray here)")
     t.add_argument("--workers", type=int, help="worker processes (default every core)")
-    t.add_argument("--resume", help="folder keeping finished chunks (default OUTPUT/chunks)")
+    t.add_argument("--resume", help="folder keeping finished chunks, read back by a rerun on the same throws, "
+                   "clips and base motion (default OUTPUT/chunks)")
     t.add_argument("--chunk-size", type=int, default=20, help="throws per job (default 20)")
     t.add_argument("--dataset", help="also write the labelled dataset (.npz) here")
     q = sub.add_parser("play", help="one impact: write the response motion and its explanation")
