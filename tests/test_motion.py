@@ -452,3 +452,16 @@ def test_fk_methods_agree():
     assert_allclose(gp, ref_p, atol=1e-12)
     assert_allclose(gr, ref_r, atol=1e-12)
     assert_allclose(m.global_positions(), gp)
+
+
+def test_digest_follows_what_the_motion_plays_not_its_name():
+    from kinodyn.data import library
+
+    walk = library.load("walk")
+    same = walk.replace(root_pos=walk.root_pos.copy(), name="renamed")
+    assert same.digest() == walk.digest()
+    moved = walk.root_pos.copy()
+    moved[10, 2] += 1e-9
+    assert walk.replace(root_pos=moved).digest() != walk.digest()
+    assert walk.resample(30.0).digest() != walk.digest()
+    assert walk.mirrored().digest() != walk.digest()

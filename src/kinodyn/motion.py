@@ -10,6 +10,7 @@ channels are absolute positions).
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -111,13 +112,11 @@ class Motion:
                 f"{self.num_joints} joints)")
 
     def digest(self) -> str:
-        """A hash of the motion's content (skeleton, frames, rate and name): two motions with the same
+        """A hash of what the motion plays (skeleton, frames, rate; not its name): two motions with the same
         digest play the same. 40 hex digits."""
-        import hashlib
-
         h = hashlib.blake2b(digest_size=20)
         sk = self.skeleton
-        h.update(f"{self.name}|{self.fps!r}|{','.join(sk.names)}|".encode())
+        h.update(f"{self.fps!r}|{','.join(sk.names)}|".encode())
         for a in (sk.parents, sk.offsets, sk.end_parents, sk.end_offsets, self.root_pos, self.local_rot,
                   np.zeros(0) if self.translations is None else self.translations):
             h.update(np.ascontiguousarray(a).tobytes())

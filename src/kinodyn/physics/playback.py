@@ -98,13 +98,11 @@ _SAMPLED_MAX = 128
 
 
 def _sample_key(char, motion: Motion, dt: float, root_quat, align_floor, loop: bool) -> tuple:
-    h = hashlib.blake2b(digest_size=20)
-    for a in (motion.root_pos, motion.local_rot, motion.skeleton.offsets, motion.skeleton.parents, char.lead_steps,
-              motion.translations if motion.translations is not None else np.zeros(0),
-              np.zeros(0) if root_quat is None else np.asarray(root_quat, dtype=np.float64)):
+    h = hashlib.blake2b(motion.digest().encode(), digest_size=20)
+    for a in (char.lead_steps, np.zeros(0) if root_quat is None else np.asarray(root_quat, dtype=np.float64)):
         h.update(np.ascontiguousarray(a).tobytes())
         h.update(b"|")
-    return (id(char.body), h.hexdigest(), float(motion.fps), float(dt), root_quat is None, repr(align_floor), bool(loop))
+    return (id(char.body), h.hexdigest(), float(dt), root_quat is None, repr(align_floor), bool(loop))
 
 
 def sample_clip(char, motion: Motion, dt: float, root_quat, align_floor, loop: bool):

@@ -12,6 +12,7 @@ precomputes the ground-aligned windows of the search (:func:`kinodyn.response.se
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -68,11 +69,9 @@ class ReactionLibrary:
         return self.clips.motion(k)
 
     def fingerprint(self) -> str:
-        """A hash of everything the search reads: every clip's content (:meth:`Motion.digest`) and the
-        search parameters. A clip edited under the same name changes it (unlike :meth:`signature`)."""
-        import hashlib
-
-        text = repr(self.config) + "".join(self.clip(k).digest() for k in range(len(self)))
+        """A hash of everything the search reads: the clips' names and content (:meth:`Motion.digest`) and
+        the search parameters. A clip edited under the same name changes it (unlike :meth:`signature`)."""
+        text = repr(self.config) + "".join(f"|{n}:{self.clip(k).digest()}" for k, n in enumerate(self.names))
         return hashlib.blake2b(text.encode(), digest_size=20).hexdigest()
 
     def signature(self) -> str:
