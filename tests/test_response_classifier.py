@@ -63,14 +63,43 @@ def test_dataset_keeps_every_clips_best_error(small_set, lib):
     assert np.all(np.isinf(small_set.per_clip[~ok]))
 
 
+def test_dataset_keeps_every_clips_fast_alignment_error(small_set, lib):
+    """fast_per_clip is each clip's error D at the timing the fast alignment finds on the case's lookahead
+    (recomputed here for two cases), never below the exhaustive optimum by more than the continuous
+    offsets allow and never far above it (the fast path's bound)."""
+    from kinodyn.response.pipeline import fast_errors
+
+    ok = small_set.valid()
+    assert small_set.fast_per_clip.shape == small_set.per_clip.shape
+    assert np.all(np.isinf(small_set.fast_per_clip[~ok]))
+    for i in np.nonzero(ok)[0][:2]:
+        again = fast_errors(observe(data.load("walk"), ball_for(3, int(i))), lib)
+        np.testing.assert_array_equal(again, small_set.fast_per_clip[i])
+    fast, best = small_set.fast_per_clip[ok], small_set.per_clip[ok]
+    assert np.all(fast >= 0.9 * best) and np.median(fast / best) < 1.05
+
+
+def test_a_dataset_of_the_first_format_reads_without_fast_errors(small_set, tmp_path):
+    import json
+
+    old = {k: getattr(small_set, k) for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error",
+                                                "per_clip", "ball")}
+    np.savez(tmp_path / "v1.npz", meta=np.array(json.dumps({**small_set.meta, "format": "kinodyn.response-dataset/1"})),
+             **old)
+    back = Dataset.load(tmp_path / "v1.npz")
+    np.testing.assert_array_equal(back.per_clip, small_set.per_clip)
+    assert back.fast_per_clip.shape == small_set.per_clip.shape and np.all(np.isnan(back.fast_per_clip))
+
+
 def test_dataset_is_the_same_for_one_and_two_workers(small_set, tmp_path):
     two = generate(6, seed=3, workers=2, chunk_size=3, show_progress=False)
-    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "ball"):
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "fast_per_clip", "ball"):
         np.testing.assert_array_equal(getattr(small_set, k), getattr(two, k), err_msg=k)
     small_set.save(tmp_path / "d.npz")
     back = Dataset.load(tmp_path / "d.npz")
     np.testing.assert_array_equal(back.large, small_set.large)
     np.testing.assert_array_equal(back.per_clip, small_set.per_clip)
+    np.testing.assert_array_equal(back.fast_per_clip, small_set.fast_per_clip)
     assert back.meta == small_set.meta
     with pytest.raises(FileFormatError):
         np.savez(tmp_path / "other.npz", meta=np.array('{"format": "x"}'))
@@ -113,7 +142,7 @@ def test_dataset_is_the_same_from_the_ray_backend(small_set):
         remote = generate(6, seed=3, workers=2, chunk_size=3, backend="ray", show_progress=False)
     finally:
         ray.shutdown()
-    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "ball"):
+    for k in ("large", "small", "clip", "sim_frame", "clip_frame", "error", "per_clip", "fast_per_clip", "ball"):
         np.testing.assert_array_equal(getattr(small_set, k), getattr(remote, k), err_msg=k)
 
 

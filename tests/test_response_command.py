@@ -150,3 +150,23 @@ def test_train_refuses_a_base_motion_of_another_skeleton_before_simulating(tmp_p
     ds = generate(4, base="walk", library=folder, fps=60.0, workers=1, show_progress=False)
     assert "@ 60 fps" in ds.meta["library"] and ds.per_clip.shape == (4, 1)
     assert np.all(ds.clip[ds.valid()] == 0)
+
+
+def test_play_with_candidates_explains_the_clips_it_timed(tmp_path, capsys):
+    """``--candidates 3`` times the model's three most probable clips; explain.json lists them with their
+    error D and the chosen clip is the one of lowest D. Without a model it is refused."""
+    pytest.importorskip("sklearn")
+    from kinodyn.cli import main
+
+    out, explain = tmp_path / "r.bvh", tmp_path / "explain"
+    assert main(["response", "play", "--seed", "9", "--candidates", "3", "-o", str(out), "--explain",
+                 str(explain)]) == 0
+    facts = json.loads((explain / "explain.json").read_text(encoding="utf-8"))
+    timed = facts["candidates"]
+    assert len(timed) == 3 and len({c["clip"] for c in timed}) == 3
+    assert facts["clip"] == min(timed, key=lambda c: c["error"])["clip"]
+    assert facts["error"] == min(c["error"] for c in timed)
+    capsys.readouterr()
+    assert main(["response", "play", "--seed", "9", "--candidates", "2", "--exhaustive", "-o", str(out)]) == 2
+    assert "--candidates" in capsys.readouterr().err
+    assert main(["response", "play", "--seed", "9", "--candidates", "0", "-o", str(out)]) == 2

@@ -27,6 +27,14 @@ gives two such throws, whose features differ far less than neighbouring training
 clip: the best clips are often near-ties, and the simulation after a hit is sensitive enough that a
 change that small reorders them.
 
+The pipeline can also time the classifier's few most probable clips and keep the one of lowest error D
+(:attr:`~kinodyn.response.pipeline.ResponseConfig.candidates`): ``choice_accuracy_top<K>_<kind>`` is how
+often that choice is the exhaustive label (each candidate's D as the fast alignment finds it on the
+held-out throw, :attr:`~kinodyn.response.dataset.Dataset.fast_per_clip`; top 1 is the SVM accuracy),
+and ``fast_ms_per_impact_top<K>`` with ``speedup_vs_exhaustive_top<K>`` time that fast path
+(:func:`~kinodyn.response.pipeline.fast_choice`: the probabilities and ``K`` alignments) on the same
+throws as the others, for the shipped chooser's model.
+
 ``--quick`` scores the shipped models (no retraining) on fewer held-out throws; the full run first
 generates the shipped models' training throws again (their seed and count) and retrains both models on
 them, so it scores the shipped training recipe, and reports how many throws it used.
@@ -77,6 +85,21 @@ _NEAR = 1.10
 #: accuracy is also reported apart on near-ties (``accuracy_<kind>_near_ties``, the share of throws in
 #: ``label_near_tie_fraction``) and on the other throws (``accuracy_<kind>_decided``).
 _TIE = 1.01
+#: Numbers of candidates whose choice the benchmark scores and times beside the SVM's own clip.
+_CANDIDATES = (2, 3)
+
+
+def top_choices(probabilities: np.ndarray, first: np.ndarray, fast: np.ndarray, n: int) -> np.ndarray:
+    """``(N,)`` the clip the pipeline plays with ``n`` candidates
+    (:func:`~kinodyn.response.pipeline.fast_choice`), for ``N`` throws of which the classifier gave
+    ``probabilities (N, K)`` and chose ``first (N,)``, and the fast alignment found every clip's error
+    ``fast (N, K)`` (:attr:`~kinodyn.response.dataset.Dataset.fast_per_clip`)."""
+    from kinodyn.response.pipeline import ranked
+
+    if len(first) == 0:
+        return np.zeros(0, dtype=np.int64)
+    cand = np.array([ranked(p, c, n) for p, c in zip(probabilities, first)])
+    return cand[np.arange(len(cand)), np.argmin(np.take_along_axis(fast, cand, axis=1), axis=1)]
 
 
 def _accuracy(models, n: int, res: BenchResult) -> None:
@@ -99,6 +122,10 @@ def _accuracy(models, n: int, res: BenchResult) -> None:
         res.add(f"accuracy_{kind}_near_ties", float(np.mean(right[tie])) if np.any(tie) else float("nan"), "fraction")
         chosen = ds.per_clip[ok][np.arange(len(k)), k]
         res.add(f"choice_d_within_10pct_{kind}", float(np.mean(chosen <= _NEAR * best)), "fraction")
+        probs = model.selector().probabilities(getattr(ds, kind)[ok])
+        for n in _CANDIDATES:
+            pick = top_choices(probs, k, ds.fast_per_clip[ok], n)
+            res.add(f"choice_accuracy_top{n}_{kind}", float(np.mean(pick == ds.clip[ok])), "fraction")
     res.add("label_near_tie_fraction", float(np.mean(tie)), "fraction")
     res.add("accuracy_cases", int(ok.sum()), "cases")
 
@@ -119,7 +146,7 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
     from kinodyn.response.command import DEFAULT_KIND
     from kinodyn.response.dataset import ball_for
     from kinodyn.response.features import FEATURE_SETS, features
-    from kinodyn.response.pipeline import ResponseConfig, observe
+    from kinodyn.response.pipeline import ResponseConfig, fast_choice, observe
     from kinodyn.response.search import body_tracks, exhaustive, windows
     from kinodyn.response.selector import Selector
 
@@ -129,6 +156,7 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
     exh = []
     t = {kind: {"fast": [], "sel": [], "align": [], "sk": []} for kind in FEATURE_SETS}
     ratios = []
+    top = {c: [] for c in _CANDIDATES}
     for i in range(n):
         obs = observe(walk, ball_for(_HELD_OUT_SEED, i))
         pos, rot = body_tracks(obs.lookahead)
@@ -148,6 +176,9 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
                 t[kind][key].append(v)
             if kind == DEFAULT_KIND:
                 ratios.append(al.error / best.error if best.error > 0 else 1.0)
+                for c in _CANDIDATES:
+                    cfg = ResponseConfig(candidates=c)
+                    top[c].append(_timed(lambda: fast_choice(track, lib, sel, states, cfg), 5)[0])  # noqa: B023
     ms_exh = 1e3 * float(np.median(exh))
     res.add("exhaustive_ms_per_impact", ms_exh, "ms")
     for end, kind in [("", DEFAULT_KIND)] + [(f"_{k}", k) for k in FEATURE_SETS]:
@@ -160,6 +191,9 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
         counts = selectors[kind].counts
         rechecks = counts["float64"] / max(1, sum(counts.values()))
         res.add(f"selection_float64_rechecks{end}", rechecks, "fraction")
+    for c, v in top.items():
+        res.add(f"fast_ms_per_impact_top{c}", 1e3 * float(np.median(v)), "ms")
+        res.add(f"speedup_vs_exhaustive_top{c}", ms_exh / (1e3 * float(np.median(v))), "x")
     res.add("d_ratio_median", float(np.median(ratios)), "ratio")
     res.add("d_ratio_p95", float(np.percentile(ratios, 95)), "ratio")
     res.notes["fast_path"] = (f"unsuffixed fast-path keys are the shipped chooser's, the {DEFAULT_KIND} "

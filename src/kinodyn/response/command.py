@@ -3,8 +3,8 @@
     kinodyn response train [--cases N] [--base walk|FILE] [--library DIR [--fps F]] [--backend local|ray]
                            [--address ADDR] [--workers N] -o MODEL_DIR
     kinodyn response play --base walk --ball SPEED,DIRECTION,HEIGHT,TARGET | --seed N [--model DIR]
-                          [--exhaustive] [--library DIR [--fps F]] -o out.bvh [--html out.html]
-                          [--explain DIR]
+                          [--candidates K] [--exhaustive] [--library DIR [--fps F]] -o out.bvh
+                          [--html out.html] [--explain DIR]
 
 ``DIRECTION`` is the ball's heading of travel in degrees (180 flies at a walker's face, 0 at its back).
 """
@@ -60,6 +60,9 @@ def add_arguments(p) -> None:
     q.add_argument("--seed", type=int, help="a random ball (as in training) instead of --ball")
     q.add_argument("--model", help="model folder (default: the shipped small-feature model, or exhaustive "
                    "search with --library)")
+    q.add_argument("--candidates", type=int, default=1,
+                   help="time the model's K most probable clips and keep the one of lowest error D "
+                   "(default 1: the model's clip; each further one costs an alignment, about 0.3 ms)")
     q.add_argument("--exhaustive", action="store_true", help="choose by exhaustive search, no model")
     q.add_argument("--library", help="folder of BVH reaction clips instead of the built-in library")
     q.add_argument("--fps", type=float, help=_FPS_HELP)
@@ -131,6 +134,8 @@ def _explain(folder: Path, r, lib, model_used: bool) -> None:
              "chosen_by": "classifier + fast alignment" if model_used else "exhaustive search",
              "exhaustive": {"clip": lib.names[best.clip], "sim_frame": best.sim_frame + skip,
                             "clip_frame": best.clip_frame, "error": best.error}}
+    if r.candidates:
+        facts["candidates"] = [{"clip": lib.names[c], "error": e} for c, e in r.candidates]
     if r.probabilities is not None:
         facts["probabilities"] = {n: round(float(p), 4) for n, p in zip(lib.names, r.probabilities) if p > 0.005}
     (folder / "explain.json").write_text(json.dumps(facts, indent=2) + "\n", encoding="utf-8")
@@ -182,9 +187,10 @@ def _play(args) -> int:
     from kinodyn.io import save
     from kinodyn.response.classifier import ReactionModel
     from kinodyn.response.dataset import setup
-    from kinodyn.response.pipeline import respond
+    from kinodyn.response.pipeline import ResponseConfig, respond
 
     ball = _ball(args)
+    config = ResponseConfig(candidates=args.candidates)
     base, lib = setup(args.base, args.library, args.fps)
     select = None
     if not args.exhaustive and args.model is None and args.library is not None:
@@ -192,7 +198,10 @@ def _play(args) -> int:
               "chosen by exhaustive search (--model DIR for a model trained on them)", file=sys.stderr)
     elif not args.exhaustive:
         select = ReactionModel.load(args.model or DEFAULT_MODEL / DEFAULT_KIND, lib)
-    r = respond(base, lib, ball, select)
+    if select is None and args.candidates != 1:
+        raise ParameterError("--candidates chooses among a model's most probable clips; the exhaustive search "
+                             "(--exhaustive, or --library without --model) already times every clip")
+    r = respond(base, lib, ball, select, config)
     save(args.output, r.motion)
     if args.html:
         from kinodyn.viz.html import write

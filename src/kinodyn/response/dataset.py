@@ -3,7 +3,8 @@
 Balls are thrown at the character while it plays a base motion, varying the angle, speed, starting height,
 arrival time and target landmark. Each case is simulated through the classification window and the
 lookahead (:func:`kinodyn.response.pipeline.observe`) and labelled by the exhaustive search (clip and
-timing); its large and small feature vectors (:mod:`kinodyn.response.features`) are kept. Generation
+timing), with every clip's error D as the exhaustive search and as the fast alignment find it; its large
+and small feature vectors (:mod:`kinodyn.response.features`) are kept. Generation
 runs through :func:`kinodyn.parallel.run` (all local cores by default, or Ray), deterministic per seed:
 case ``i`` of seed ``s`` draws its ball from ``numpy.random.default_rng([s, i])``. Saved as ``.npz``
 arrays plus a JSON description (no pickles).
@@ -21,13 +22,15 @@ import numpy as np
 from kinodyn.errors import FileFormatError, KinodynError, ParameterError
 from kinodyn.io.atomic import atomic_path
 from kinodyn.response.features import features
-from kinodyn.response.pipeline import Ball, label_search, observe
+from kinodyn.response.pipeline import Ball, fast_errors, label_search, observe
 from kinodyn.version import __version__
 
 __all__ = ["TARGETS", "Dataset", "ball_for", "flip_chunk", "generate", "label_chunk", "label_flips",
            "load_base", "setup"]
 
-FORMAT = "kinodyn.response-dataset/1"
+FORMAT = "kinodyn.response-dataset/2"
+#: Earlier formats :meth:`Dataset.load` still reads (``/1`` has no ``fast_per_clip``: read as NaN).
+_READS = ("kinodyn.response-dataset/1", FORMAT)
 #: Landmarks the balls aim at.
 TARGETS = ("chest", "stomach", "pelvis", "head")
 
@@ -102,7 +105,7 @@ def label_chunk(tasks: list) -> dict:
     for a library of BVH clips (one worker job; the library is built once per process). Cases whose
     simulation fails get label -1."""
     rows = {"large": [], "small": [], "clip": [], "sim_frame": [], "clip_frame": [], "error": [], "per_clip": [],
-            "ball": []}
+            "fast_per_clip": [], "ball": []}
     for seed, i, base, *library in tasks:
         motion, lib = _setup(base, *library)
         ball = ball_for(seed, i)
@@ -111,12 +114,13 @@ def label_chunk(tasks: list) -> dict:
             obs = observe(motion, ball)
             r = label_search(obs, lib)
             k, fs, fm, err, per_clip = r.clip, r.sim_frame, r.clip_frame, r.error, r.per_clip
+            fast = fast_errors(obs, lib)
             big, small = features(obs.states, "large"), features(obs.states, "small")
         except KinodynError:
             k, fs, fm, err, big, small = -1, -1, -1, np.inf, np.full(198, np.nan), np.full(20, np.nan)
-            per_clip = np.full(len(lib), np.inf)
+            per_clip, fast = np.full(len(lib), np.inf), np.full(len(lib), np.inf)
         for key, v in (("large", big), ("small", small), ("clip", k), ("sim_frame", fs), ("clip_frame", fm),
-                       ("error", err), ("per_clip", per_clip)):
+                       ("error", err), ("per_clip", per_clip), ("fast_per_clip", fast)):
             rows[key].append(v)
     return {k: np.asarray(v) for k, v in rows.items()}
 
@@ -173,6 +177,8 @@ class Dataset:
         clip: ``(N,)`` exhaustive label (clip index; -1 where the case failed).
         sim_frame, clip_frame, error: ``(N,)`` the exhaustive timing and its error D.
         per_clip: ``(N, K)`` every clip's best error D (the label is its argmin; inf where a case failed).
+        fast_per_clip: ``(N, K)`` every clip's error D at the timing the fast alignment finds (what a
+            choice among the classifier's candidates compares; NaN in datasets of format ``/1``).
         ball: ``(N, 5)`` speed, direction, height, time, target index of each case.
         meta: JSON-able description (seed, base, clip names, library signature).
     """
@@ -186,6 +192,11 @@ class Dataset:
     per_clip: np.ndarray
     ball: np.ndarray
     meta: dict
+    fast_per_clip: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.fast_per_clip is None:
+            object.__setattr__(self, "fast_per_clip", np.full(np.shape(self.per_clip), np.nan))
 
     def __len__(self) -> int:
         return len(self.clip)
@@ -197,17 +208,19 @@ class Dataset:
         with atomic_path(path, suffix=".npz") as tmp:
             np.savez_compressed(tmp, meta=np.array(json.dumps(self.meta)), large=self.large, small=self.small,
                                 clip=self.clip, sim_frame=self.sim_frame, clip_frame=self.clip_frame,
-                                error=self.error, per_clip=self.per_clip, ball=self.ball)
+                                error=self.error, per_clip=self.per_clip, ball=self.ball,
+                                fast_per_clip=self.fast_per_clip)
 
     @classmethod
     def load(cls, path) -> "Dataset":
         try:
             with np.load(Path(path), allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
-                if meta.get("format") != FORMAT:
+                if meta.get("format") not in _READS:
                     raise FileFormatError(f"not a kinodyn response dataset (format {meta.get('format')!r})", path)
+                fast = z["fast_per_clip"] if "fast_per_clip" in z.files else None
                 return cls(z["large"], z["small"], z["clip"], z["sim_frame"], z["clip_frame"], z["error"],
-                           z["per_clip"], z["ball"], meta)
+                           z["per_clip"], z["ball"], meta, fast)
         except (KeyError, ValueError, OSError, json.JSONDecodeError) as e:
             if isinstance(e, FileFormatError):
                 raise
@@ -243,12 +256,13 @@ def generate(cases: int, seed: int = 0, base: str = "walk", *, library=None, fps
     folder, rate = _folder_and_rate(library, fps)
     motion, lib = _setup(base, folder, rate)  # bad input is reported here, not as failed cases
     tasks = [(int(seed), i, base) + (() if folder is None else (folder, rate)) for i in range(int(cases))]
-    # chunks kept in resume_dir are read back only for the same clips, base motion and kinodyn version
-    context = f"kinodyn {__version__}, library {lib.fingerprint()}, base {motion.digest()}"
+    # chunks kept in resume_dir are read back only for the same clips, base motion, kinodyn version and format
+    context = f"kinodyn {__version__}, {FORMAT}, library {lib.fingerprint()}, base {motion.digest()}"
     out = parallel.run(label_chunk, tasks, chunk_size=chunk_size, workers=workers, backend=backend,
                        address=address, resume_dir=resume_dir, context=context, desc=f"throws at {base}",
                        show_progress=show_progress)
     meta = {"format": FORMAT, "seed": int(seed), "base": base, "cases": int(cases), "clips": list(lib.names),
             "library": lib.signature(), "targets": list(TARGETS)}
     return Dataset(out["large"], out["small"], out["clip"].astype(np.int64), out["sim_frame"].astype(np.int64),
-                   out["clip_frame"].astype(np.int64), out["error"], out["per_clip"], out["ball"], meta)
+                   out["clip_frame"].astype(np.int64), out["error"], out["per_clip"], out["ball"], meta,
+                   out["fast_per_clip"])

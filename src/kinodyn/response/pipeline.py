@@ -7,7 +7,8 @@
    timing are chosen. The timing needs the simulation further on, so a lookahead copy of the world,
    started from the current state, simulates ``horizon_s`` more seconds still tracking the interrupted
    motion (the paper's "rewind": the original world is never stepped back). Choice: exhaustive search
-   over every clip, or a classifier's clip plus the fast alignment.
+   over every clip, or a classifier's clip plus the fast alignment (or its few most probable clips, each
+   aligned, the lowest error D chosen: ``ResponseConfig.candidates``).
 4. From then on the servos track a slerp blend with ease-in/ease-out weights from the interrupted motion
    to the chosen clip, which reaches the clip's matched frame at the matched simulation frame (6.1).
 5. Over that transition, root position (linear), root orientation and joint rotations (slerp) of the
@@ -32,7 +33,8 @@ from kinodyn.response.align import AlignConfig, fast_align
 from kinodyn.response.search import body_tracks, exhaustive, windows
 
 __all__ = ["Attacker", "Ball", "Observation", "Push", "Response", "ResponseConfig", "Stages", "check_inputs",
-           "ease_weights", "eieo", "label", "label_search", "looped", "observe", "recover", "respond"]
+           "ease_weights", "eieo", "fast_choice", "fast_errors", "label", "label_search", "looped", "observe",
+           "ranked", "recover", "respond"]
 
 
 @dataclass(frozen=True)
@@ -76,6 +78,9 @@ class ResponseConfig:
         settle_s: how long the contact is watched for after ``Ball.time`` before the ball counts as a miss.
         tail_s: clip time played after the transition (None: the rest of the clip).
         align: :class:`AlignConfig` of the fast alignment.
+        candidates: how many of the classifier's most probable clips the fast alignment times; the one
+            whose timing has the lowest error D is chosen. 1 is the paper's pipeline (the classifier's
+            clip); each further candidate costs one more alignment.
     """
 
     classify_s: float = 0.1
@@ -84,8 +89,12 @@ class ResponseConfig:
     settle_s: float = 0.4
     tail_s: float | None = None
     align: AlignConfig = AlignConfig()
+    candidates: int = 1
 
     def __post_init__(self):
+        if isinstance(self.candidates, bool) or not isinstance(self.candidates, (int, np.integer)) \
+                or self.candidates < 1:
+            raise ParameterError(f"candidates must be a whole number >= 1, got {self.candidates!r}")
         if not (self.classify_s >= 0 and self.min_transition_s > 0
                 and self.horizon_s > self.classify_s + self.min_transition_s and self.settle_s > 0):
             raise ParameterError("need classify_s >= 0, min_transition_s > 0, settle_s > 0 and horizon_s > "
@@ -125,6 +134,8 @@ class Response:
         lookahead: the lookahead simulation the timing was searched on (a Motion).
         features: the simulation states at the classification samples, for the classifier.
         probabilities: the classifier's class probabilities (None for the exhaustive choice).
+        candidates: ``((clip index, error D), ...)`` the clips the fast alignment timed, most probable
+            first (``ResponseConfig.candidates`` of them; empty for the exhaustive choice).
         interrupted: the base motion as it would have played on, over the output's frames up to the
             end of the transition (the reference a reaction is judged against).
         hits: the :class:`kinodyn.physics.Impact` records the character received (time, body, point,
@@ -146,6 +157,7 @@ class Response:
     probabilities: np.ndarray | None = None
     interrupted: Motion | None = None
     hits: tuple = ()
+    candidates: tuple = ()
 
 
 def eieo(u) -> np.ndarray:
@@ -311,19 +323,42 @@ def _target(base: Motion, clip: Motion, fm: int, n: int, tail: int) -> Motion:
     return base.replace(root_pos=rp, local_rot=np.concatenate([lr, after]), name="transition target")
 
 
+def ranked(probabilities, first: int, n: int) -> np.ndarray:
+    """The ``n`` most probable clip indices by ``probabilities (K,)``, ``first`` (the classifier's choice)
+    leading, then the others by falling probability (ties by index)."""
+    order = np.argsort(-np.asarray(probabilities, dtype=np.float64), kind="stable")
+    return np.concatenate([[first], order[order != first]])[:n].astype(np.int64)
+
+
+def fast_choice(track, library, select, features, config: ResponseConfig = ResponseConfig()):
+    """The fast path's choice on a simulated segment's body tracks ``track`` ``(pos, rot)``: the
+    classifier's ``config.candidates`` most probable clips (``select(features) -> (clip, probabilities)``),
+    each timed by the fast alignment, the lowest error D chosen (the most probable on a tie).
+
+    Returns ``(clip, AlignResult, probabilities, ((clip, error D), ...) timed, most probable first)``.
+    """
+    k, probs = select(features)
+    if config.candidates > 1 and probs is None:
+        raise ParameterError(f"candidates={config.candidates} ranks clips by the classifier's probabilities, "
+                             "and this classifier gives none (a plain SVC); calibrate it or use candidates=1")
+    clips = ranked(probs, int(k), config.candidates) if config.candidates > 1 else [int(k)]
+    timed = [(int(c), fast_align(None, track, library, int(c), config.align)) for c in clips]
+    k, a = min(timed, key=lambda t: t[1].error)
+    return k, a, probs, tuple((c, float(t.error)) for c, t in timed)
+
+
 def _choose(lookahead: Motion, library, skip: int, select, features, cfg: ResponseConfig):
-    """Clip and timing on the lookahead simulation (frames from ``skip`` on): exhaustive, or the
-    classifier's clip (``select(features) -> (clip, probabilities)``) with the fast alignment."""
+    """Clip and timing on the lookahead simulation (frames from ``skip`` on): exhaustive, or the fast
+    path (:func:`fast_choice`). Returns ``(clip, sim_frame, clip_frame, error, probabilities, timed)``."""
     pos, rot = body_tracks(lookahead)
     pos, rot = pos[skip:], rot[skip:]
     if len(pos) < library.window:
         raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
     if select is None:
         r = exhaustive(windows(pos, rot, library.window), library)
-        return r.clip, r.sim_frame + skip, r.clip_frame, r.error, None
-    k, probs = select(features)
-    a = fast_align(None, (pos, rot), library, int(k), cfg.align)
-    return int(k), int(round(a.sim_frame)) + skip, int(round(a.clip_frame)), a.error, probs
+        return r.clip, r.sim_frame + skip, r.clip_frame, r.error, None, ()
+    k, a, probs, timed = fast_choice((pos, rot), library, select, features, cfg)
+    return k, int(round(a.sim_frame)) + skip, int(round(a.clip_frame)), a.error, probs, timed
 
 
 def _states(world, hit, times) -> list:
@@ -401,6 +436,17 @@ def label_search(obs: Observation, library, config: ResponseConfig = ResponseCon
     return replace(r, sim_frame=r.sim_frame + skip)
 
 
+def fast_errors(obs: Observation, library, config: ResponseConfig = ResponseConfig()) -> np.ndarray:
+    """``(K,)`` the error D of every clip's timing found by the fast alignment on an observation's
+    lookahead (what a choice among the classifier's candidates compares, for every clip at once)."""
+    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
+    pos, rot = body_tracks(obs.lookahead)
+    track = (pos[skip:], rot[skip:])
+    if len(track[0]) < library.window:
+        raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
+    return np.array([fast_align(None, track, library, c, config.align).error for c in range(len(library))])
+
+
 def label(obs: Observation, library, config: ResponseConfig = ResponseConfig()):
     """The exhaustive choice for an observation: ``(clip, sim_frame, clip_frame, error)`` with
     ``sim_frame`` counted from the choice frame (the training label of section 7.2)."""
@@ -434,7 +480,7 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
                                                    obs.states, obs.lookahead)
     fps = base.fps
     skip = max(1, int(round(config.min_transition_s * fps)))
-    k, fs, fm, err, probs = _choose(lookahead, library, skip, select, states, config)
+    k, fs, fm, err, probs, timed = _choose(lookahead, library, skip, select, states, config)
     clip = library.clip(k)
     # 6.1: from the choice on, track the ease-in/ease-out blend into the clip.
     tail = clip.num_frames if config.tail_s is None else int(round(config.tail_s * fps))
@@ -460,7 +506,7 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
     impulse = _impulse(world, hit)
     hits = tuple(i for i in world.impacts if i.character == hit.name)
     return Response(out, stages, clip.name, k, fs, fm, float(err), c / fps, impulse, sim[c:], lookahead,
-                    states, probs, track[:t1 + 1], hits)
+                    states, probs, track[:t1 + 1], hits, timed)
 
 
 def recover(motion: Motion, clip: str, then="idle", blend_s: float = 0.4) -> Motion:
