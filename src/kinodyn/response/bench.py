@@ -123,9 +123,9 @@ def _accuracy(models, n: int, res: BenchResult) -> None:
         chosen = ds.per_clip[ok][np.arange(len(k)), k]
         res.add(f"choice_d_within_10pct_{kind}", float(np.mean(chosen <= _NEAR * best)), "fraction")
         probs = model.selector().probabilities(getattr(ds, kind)[ok])
-        for n in _CANDIDATES:
-            pick = top_choices(probs, k, ds.fast_per_clip[ok], n)
-            res.add(f"choice_accuracy_top{n}_{kind}", float(np.mean(pick == ds.clip[ok])), "fraction")
+        for count in _CANDIDATES:
+            pick = top_choices(probs, k, ds.fast_per_clip[ok], count)
+            res.add(f"choice_accuracy_top{count}_{kind}", float(np.mean(pick == ds.clip[ok])), "fraction")
     res.add("label_near_tie_fraction", float(np.mean(tie)), "fraction")
     res.add("accuracy_cases", int(ok.sum()), "cases")
 
