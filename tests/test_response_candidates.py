@@ -62,19 +62,23 @@ def test_candidates_choose_the_lowest_fast_error_among_the_most_probable_clips(l
 
 
 def test_the_benchmarks_choice_among_candidates_is_the_pipelines(lib, model):
-    """``kinodyn bench response`` scores the choice among candidates from the dataset's per-clip fast
-    errors; on each throw it is the clip the pipeline itself plays."""
-    from kinodyn.response.bench import top_choices
+    """``kinodyn bench response`` scores the choice among candidates from every clip's fast-alignment
+    error (the dataset's, and the finer alignment's); on each throw it is the clip the pipeline itself
+    plays with that alignment, at the same error D."""
+    from kinodyn.response.bench import FINE, fine_errors_chunk, top_choices
 
     ds = generate(4, seed=_SEED, workers=1, show_progress=False)
     ok = np.nonzero(ds.valid())[0]
     x = getattr(ds, DEFAULT_KIND)[ok]
     sel = model.selector()
-    picks = top_choices(sel.probabilities(x), sel.predict_features(x), ds.fast_per_clip[ok], 2)
+    probs, first = sel.probabilities(x), sel.predict_features(x)
+    fine = fine_errors_chunk([(_SEED, int(i)) for i in ok])["fast"]
     walk = data.load("walk")
-    for i, pick in zip(ok, picks):
-        r = respond(walk, lib, ball_for(_SEED, int(i)), model, ResponseConfig(candidates=2))
-        assert r.clip_index == pick
+    for errors, align in ((ds.fast_per_clip[ok], ResponseConfig().align), (fine, FINE)):
+        for i, pick in zip(ok, top_choices(probs, first, errors, 2)):
+            r = respond(walk, lib, ball_for(_SEED, int(i)), model, ResponseConfig(candidates=2, align=align))
+            assert r.clip_index == pick
+            assert r.error == pytest.approx(errors[list(ok).index(i), pick], rel=1e-12)
 
 
 def test_candidates_are_a_whole_number_and_need_probabilities(lib, model):
