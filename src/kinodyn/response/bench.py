@@ -207,9 +207,9 @@ def _held_out(lib, models, n: int, res: BenchResult) -> None:
                 t[kind][key].append(v)
             if kind == DEFAULT_KIND:
                 ratios.append(al.error / best.error if best.error > 0 else 1.0)
-                for c, end in top:
+                for (c, end), times in top.items():
                     cfg = ResponseConfig(candidates=c, align=FINE if end else AlignConfig())
-                    top[c, end].append(_timed(lambda: fast_choice(track, lib, sel, states, cfg), 5)[0])  # noqa: B023
+                    times.append(_timed(lambda: fast_choice(track, lib, sel, states, cfg), 5)[0])  # noqa: B023
     ms_exh = 1e3 * float(np.median(exh))
     res.add("exhaustive_ms_per_impact", ms_exh, "ms")
     for end, kind in [("", DEFAULT_KIND)] + [(f"_{k}", k) for k in FEATURE_SETS]:
