@@ -141,7 +141,9 @@ def test_the_page_colours_the_tracked_segments_inside_the_wall(tmp_path, two_arm
         s = at(drv, f_out / result.fps)
         assert next(c for c in s["characters"] if c["name"] == "tracked")["hot"] == 0
         red_out = red_pixels(drv)
-    assert red_in > red_out + 100
+    # the highlight adds about 100 red pixels at 960 x 600 (measured 123-131 inside, 22 outside, the
+    # count moving by a few pixels with the antialiasing from run to run): a margin of 100 failed now and then
+    assert red_in > red_out + 60, (red_in, red_out)
 
 
 def test_arms_crossing_through_each_other_are_marked_as_self_collision():
