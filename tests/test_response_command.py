@@ -154,7 +154,7 @@ def test_train_refuses_a_base_motion_of_another_skeleton_before_simulating(tmp_p
 
 def test_play_with_candidates_explains_the_clips_it_timed(tmp_path, capsys):
     """``--candidates 3`` times the model's three most probable clips; explain.json lists them with their
-    error D and the chosen clip is the one of lowest D. Without a model it is refused."""
+    error D and the chosen clip is the one of lowest D. Without a model it and ``--align-stride`` are refused."""
     pytest.importorskip("sklearn")
     from kinodyn.cli import main
 
@@ -169,4 +169,7 @@ def test_play_with_candidates_explains_the_clips_it_timed(tmp_path, capsys):
     capsys.readouterr()
     assert main(["response", "play", "--seed", "9", "--candidates", "2", "--exhaustive", "-o", str(out)]) == 2
     assert "--candidates" in capsys.readouterr().err
+    assert main(["response", "play", "--seed", "9", "--align-stride", "5", "--exhaustive", "-o", str(out)]) == 2
+    assert "--align-stride" in capsys.readouterr().err
     assert main(["response", "play", "--seed", "9", "--candidates", "0", "-o", str(out)]) == 2
+    assert main(["response", "play", "--seed", "9", "--align-stride", "0", "-o", str(out)]) == 2

@@ -203,9 +203,9 @@ def _play(args) -> int:
               "chosen by exhaustive search (--model DIR for a model trained on them)", file=sys.stderr)
     elif not args.exhaustive:
         select = ReactionModel.load(args.model or DEFAULT_MODEL / DEFAULT_KIND, lib)
-    if select is None and args.candidates != 1:
-        raise ParameterError("--candidates chooses among a model's most probable clips; the exhaustive search "
-                             "(--exhaustive, or --library without --model) already times every clip")
+    if select is None and (args.candidates != 1 or args.align_stride != 10):
+        raise ParameterError("--candidates and --align-stride shape the model's fast path; the exhaustive search "
+                             "(--exhaustive, or --library without --model) already times every clip at every frame")
     r = respond(base, lib, ball, select, config)
     save(args.output, r.motion)
     if args.html:
