@@ -190,11 +190,10 @@ def _play(args) -> int:
     from kinodyn.io import save
     from kinodyn.response.classifier import ReactionModel
     from kinodyn.response.dataset import setup
+    from kinodyn.response.align import AlignConfig
     from kinodyn.response.pipeline import ResponseConfig, respond
 
     ball = _ball(args)
-    from kinodyn.response.align import AlignConfig
-
     config = ResponseConfig(candidates=args.candidates, align=AlignConfig(stride=args.align_stride))
     base, lib = setup(args.base, args.library, args.fps)
     select = None

@@ -347,13 +347,24 @@ def fast_choice(track, library, select, features, config: ResponseConfig = Respo
     return k, a, probs, tuple((c, float(t.error)) for c, t in timed)
 
 
+def _searched(lookahead: Motion, library, skip: int) -> tuple[np.ndarray, np.ndarray]:
+    """The body tracks ``(pos, rot)`` of the lookahead from frame ``skip`` on, where a clip's timing is
+    searched (checked to hold one search window)."""
+    pos, rot = body_tracks(lookahead)
+    if len(pos) - skip < library.window:
+        raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
+    return pos[skip:], rot[skip:]
+
+
+def _skip(config: ResponseConfig, fps: float) -> int:
+    """Lookahead frames before the earliest clip frame a transition may reach (``min_transition_s``)."""
+    return max(1, int(round(config.min_transition_s * fps)))
+
+
 def _choose(lookahead: Motion, library, skip: int, select, features, cfg: ResponseConfig):
     """Clip and timing on the lookahead simulation (frames from ``skip`` on): exhaustive, or the fast
     path (:func:`fast_choice`). Returns ``(clip, sim_frame, clip_frame, error, probabilities, timed)``."""
-    pos, rot = body_tracks(lookahead)
-    pos, rot = pos[skip:], rot[skip:]
-    if len(pos) < library.window:
-        raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
+    pos, rot = _searched(lookahead, library, skip)
     if select is None:
         r = exhaustive(windows(pos, rot, library.window), library)
         return r.clip, r.sim_frame + skip, r.clip_frame, r.error, None, ()
@@ -427,23 +438,15 @@ def observe(base: Motion, impact, config: ResponseConfig = ResponseConfig(),
 def label_search(obs: Observation, library, config: ResponseConfig = ResponseConfig()):
     """The exhaustive search of an observation's lookahead (:class:`kinodyn.response.search.SearchResult`,
     ``sim_frame`` counted from the choice frame), with every clip's best error D in ``per_clip``."""
-    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
-    pos, rot = body_tracks(obs.lookahead)
-    sim = windows(pos[skip:], rot[skip:], library.window)
-    if len(sim) == 0:
-        raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
-    r = exhaustive(sim, library)
+    skip = _skip(config, obs.world.config.fps)
+    r = exhaustive(windows(*_searched(obs.lookahead, library, skip), library.window), library)
     return replace(r, sim_frame=r.sim_frame + skip)
 
 
 def fast_errors(obs: Observation, library, config: ResponseConfig = ResponseConfig()) -> np.ndarray:
     """``(K,)`` the error D of every clip's timing found by the fast alignment on an observation's
     lookahead (what a choice among the classifier's candidates compares, for every clip at once)."""
-    skip = max(1, int(round(config.min_transition_s * obs.world.config.fps)))
-    pos, rot = body_tracks(obs.lookahead)
-    track = (pos[skip:], rot[skip:])
-    if len(track[0]) < library.window:
-        raise ParameterError(f"horizon_s leaves fewer frames than the {library.window}-frame search window")
+    track = _searched(obs.lookahead, library, _skip(config, obs.world.config.fps))
     return np.array([fast_align(None, track, library, c, config.align).error for c in range(len(library))])
 
 
@@ -479,7 +482,7 @@ def respond(base: Motion, library, impact=Ball(), select=None, config: ResponseC
     world, hit, track, c, t0, states, lookahead = (obs.world, obs.hit, obs.track, obs.impact_frame, obs.choice_frame,
                                                    obs.states, obs.lookahead)
     fps = base.fps
-    skip = max(1, int(round(config.min_transition_s * fps)))
+    skip = _skip(config, fps)
     k, fs, fm, err, probs, timed = _choose(lookahead, library, skip, select, states, config)
     clip = library.clip(k)
     # 6.1: from the choice on, track the ease-in/ease-out blend into the clip.
